@@ -1,0 +1,558 @@
+//! One controller interface over MPC-ESO, MPC, PID and fuzzy PID, with the
+//! multi-rate schedule of plant.md section 6.1.
+//!
+//! [`ControllerConfig`] holds the parameters (physical, as a user sets them);
+//! [`Controller::new`] designs from it once (f64, slow, allocation-free) and
+//! the resulting [`Controller`] is called once per base tick through
+//! [`Controller::step`], which uses only precomputed numbers. A parameter
+//! change is a new configuration and a new controller, never a mutation
+//! hidden in a step.
+//!
+//! Every base tick, in this order (section 6.1):
+//! 1. check the sample and the reference (non-finite: safe command, flag);
+//! 2. TD update if `k mod n_h == 0` (MPC-ESO only);
+//! 3. MPC / PID update if `k mod n_c == 0`, using the ESO state *before* this
+//!    tick's ESO update;
+//! 4. ESO update if `k mod n_h == 0` with y = Xo and u = the command now in force.
+//!
+//! Start-up is bumpless: on the first tick the commanded power-piston position
+//! starts at the measured Xi and the ESO's z1 and the TD's v1 at the measured
+//! Xo (all zero in the scenarios of plant.md, which start at rest at 0).
+
+use crate::design::{DesignError, MpcParams};
+use crate::eso::{EsoError, EsoFixed, EsoFixedGains, EsoParams};
+use crate::fuzzy::{FuzzyParams, FuzzyPid};
+use crate::fxp::{Pos, Vel};
+use crate::mpc::{clamp, Limits, Mpc, MpcGains, Observed};
+use crate::params::PlantParams;
+use crate::pid::{Pid, PidParams};
+use crate::td::{Td, TdParams};
+
+/// The control laws the core offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControllerKind {
+    /// MPC on the augmented model with the ESO's observed state and the TD.
+    MpcEso,
+    /// MPC with its own open-loop model state (Wang 2009).
+    Mpc,
+    /// Velocity-output PI(D) with anti-windup.
+    Pid,
+    /// PID with Mamdani fuzzy gain scheduling.
+    FuzzyPid,
+}
+
+impl ControllerKind {
+    /// All kinds, in the order the paper compares them.
+    pub const ALL: [Self; 4] = [Self::MpcEso, Self::Mpc, Self::Pid, Self::FuzzyPid];
+
+    /// The command-line and log name (`mpc-eso`, `mpc`, `pid`, `fuzzy-pid`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::MpcEso => "mpc-eso",
+            Self::Mpc => "mpc",
+            Self::Pid => "pid",
+            Self::FuzzyPid => "fuzzy-pid",
+        }
+    }
+
+    /// Parse a name given by [`Self::name`].
+    pub fn from_name(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == s)
+    }
+}
+
+/// Named parameter presets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Preset {
+    /// plant.md section 6.3: Ts = 0.1 s, h = 0.006 s, r_w = 33.
+    Paper,
+    /// plant.md section 10: Ts = 0.01 s, h = 0.001 s, r_w = 300.
+    Fast,
+}
+
+impl Preset {
+    /// Both presets.
+    pub const ALL: [Self; 2] = [Self::Paper, Self::Fast];
+
+    /// `paper` or `fast`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Fast => "fast",
+        }
+    }
+
+    /// Parse a name given by [`Self::name`].
+    pub fn from_name(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == s)
+    }
+}
+
+/// Everything a controller is designed from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControllerConfig {
+    /// Which law runs.
+    pub kind: ControllerKind,
+    /// Base tick period, s (1e-4 in the simulator, 1e-3 on the board).
+    pub base_dt_s: f64,
+    /// Physical parameters the prediction model is built from.
+    pub plant: PlantParams,
+    /// Plain MPC design.
+    pub mpc: MpcParams,
+    /// MPC-ESO design.
+    pub mpc_eso: MpcParams,
+    /// Observer.
+    pub eso: EsoParams,
+    /// Tracking differentiator (its `h_s` is the ESO's step).
+    pub td: TdParams,
+    /// PI(D) baseline.
+    pub pid: PidParams,
+    /// Fuzzy PID.
+    pub fuzzy: FuzzyParams,
+    /// Speed and stroke limits.
+    pub limits: Limits,
+    /// Largest plausible |Xo|, m; a larger reading is clamped and flagged.
+    pub xo_plausible_m: f32,
+}
+
+impl ControllerConfig {
+    /// A preset for one controller at the simulator's base tick (1e-4 s).
+    pub fn preset(preset: Preset, kind: ControllerKind) -> Self {
+        let plant = PlantParams::NOMINAL;
+        let mut cfg = Self {
+            kind,
+            base_dt_s: 1.0e-4,
+            plant,
+            mpc: MpcParams {
+                np: 6,
+                nc: 2,
+                ts_s: 0.1,
+                rw: 33.0,
+            },
+            mpc_eso: MpcParams {
+                np: 8,
+                nc: 3,
+                ts_s: 0.1,
+                rw: 33.0,
+            },
+            eso: EsoParams::PAPER,
+            td: TdParams::PAPER,
+            pid: PidParams::PAPER,
+            fuzzy: FuzzyParams::PAPER,
+            limits: Limits::from_plant(&plant),
+            xo_plausible_m: 1.0,
+        };
+        if preset == Preset::Fast {
+            for m in [&mut cfg.mpc, &mut cfg.mpc_eso] {
+                m.ts_s = 0.01;
+                m.rw = 300.0;
+            }
+            cfg.eso.h_s = 0.001;
+            cfg.td.h_s = 0.001;
+            cfg.pid.ts_s = 0.01;
+            cfg.fuzzy.base.ts_s = 0.01;
+        }
+        cfg
+    }
+
+    /// The MPC parameters of the selected kind (plain or ESO variant).
+    pub fn active_mpc(&self) -> MpcParams {
+        match self.kind {
+            ControllerKind::Mpc => self.mpc,
+            _ => self.mpc_eso,
+        }
+    }
+}
+
+/// Why a configuration was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfigError {
+    /// The MPC design failed.
+    Design(DesignError),
+    /// The observer parameters are invalid.
+    Eso(EsoError),
+    /// TD parameters not finite and positive.
+    Td,
+    /// PID or fuzzy parameters invalid.
+    Pid,
+    /// Limits invalid.
+    Limits,
+    /// Base tick not positive, or a task period shorter than the base tick or
+    /// longer than 2^31 base ticks.
+    Schedule,
+}
+
+impl ConfigError {
+    /// A short human-readable reason.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Design(d) => d.as_str(),
+            Self::Eso(EsoError::Gain) => "ESO gains or step out of range",
+            Self::Eso(EsoError::Fal) => "ESO alpha must be in (0, 1] and delta in (0, 8) m",
+            Self::Td => "TD parameters must be finite and > 0",
+            Self::Pid => "PID gains must be finite and >= 0, Ts > 0",
+            Self::Limits => "limits must be finite with v_max > 0 and x_min < x_max",
+            Self::Schedule => "task periods must be whole multiples of the base tick",
+        }
+    }
+}
+
+/// One sample of the sensors, SI units (built the same way by the firmware,
+/// the simulator and the HIL loop).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Actuating piston position (LVDT), m.
+    pub xo_m: f32,
+    /// Power piston position (motor encoder), m.
+    pub xi_m: f32,
+    /// Line-1 pressure, gauge, Pa.
+    pub p1_pa: f32,
+    /// Line-2 pressure, gauge, Pa.
+    pub p2_pa: f32,
+    /// Load force, N.
+    pub ft_n: f32,
+}
+
+/// Status bits of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Flags(pub u8);
+
+impl Flags {
+    /// The position measurement or the reference was NaN or infinite: the
+    /// command is 0 and no controller state was updated.
+    pub const NON_FINITE_INPUT: u8 = 1 << 0;
+    /// The position measurement was outside the plausible range and clamped.
+    pub const OUT_OF_RANGE: u8 = 1 << 1;
+    /// The reference was outside the stroke and clamped to it.
+    pub const REF_CLAMPED: u8 = 1 << 2;
+    /// A speed or stroke limit was active at the last controller update.
+    pub const SATURATED: u8 = 1 << 3;
+    /// The law produced a non-finite value: the command is 0.
+    pub const NON_FINITE_OUTPUT: u8 = 1 << 4;
+
+    /// True if any of `bits` is set.
+    pub fn has(self, bits: u8) -> bool {
+        self.0 & bits != 0
+    }
+
+    /// True if a bit that makes the command a safe stop is set.
+    pub fn is_error(self) -> bool {
+        self.has(Self::NON_FINITE_INPUT | Self::NON_FINITE_OUTPUT)
+    }
+}
+
+/// Result of one base tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Output {
+    /// Drive speed command, m/s, within +-v_max.
+    pub v_cmd_mps: f32,
+    /// Status of this tick.
+    pub flags: Flags,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Law {
+    MpcEso {
+        gains: MpcGains,
+        eso_gains: EsoFixedGains,
+        b0: f32,
+        mpc: Mpc,
+        eso: EsoFixed,
+        td: Td,
+        td_params: TdParams,
+    },
+    Mpc {
+        gains: MpcGains,
+        mpc: Mpc,
+    },
+    Pid {
+        params: PidParams,
+        pid: Pid,
+    },
+    Fuzzy {
+        params: FuzzyParams,
+        fuzzy: FuzzyPid,
+    },
+}
+
+/// A designed controller with its run-time state.
+#[derive(Clone, Copy, Debug)]
+pub struct Controller {
+    kind: ControllerKind,
+    law: Law,
+    limits: Limits,
+    xo_plausible_m: f32,
+    /// ESO/TD period in base ticks.
+    n_h: u32,
+    /// MPC/PID period in base ticks.
+    n_c: u32,
+    /// Base tick index k.
+    k: u64,
+    /// Command in force.
+    v_cmd_mps: f32,
+    /// Saturation seen at the last controller update.
+    saturated: bool,
+    started: bool,
+}
+
+fn ticks(period_s: f64, base_dt_s: f64) -> Result<u32, ConfigError> {
+    let n = libm::round(period_s / base_dt_s);
+    if !(1.0..=2_147_483_648.0).contains(&n) {
+        return Err(ConfigError::Schedule);
+    }
+    Ok(n as u32)
+}
+
+impl Controller {
+    /// Design the configured controller (f64; slow, call at start-up or after a
+    /// parameter change, not per tick).
+    pub fn new(cfg: &ControllerConfig) -> Result<Self, ConfigError> {
+        if !(cfg.base_dt_s.is_finite() && cfg.base_dt_s > 0.0) {
+            return Err(ConfigError::Schedule);
+        }
+        let plausible = cfg.xo_plausible_m.is_finite() && cfg.xo_plausible_m > 0.0;
+        if !(cfg.limits.is_valid() && plausible) {
+            return Err(ConfigError::Limits);
+        }
+        let mut n_h = 1;
+        let (law, n_c) = match cfg.kind {
+            ControllerKind::MpcEso => {
+                let gains =
+                    MpcGains::design(&cfg.plant, cfg.mpc_eso).map_err(ConfigError::Design)?;
+                let eso_gains = EsoFixedGains::new(&cfg.eso).map_err(ConfigError::Eso)?;
+                if !cfg.td.is_valid() {
+                    return Err(ConfigError::Td);
+                }
+                n_h = ticks(cfg.eso.h_s, cfg.base_dt_s)?;
+                let td_params = TdParams {
+                    h_s: cfg.eso.h_s as f32,
+                    ..cfg.td
+                };
+                let law = Law::MpcEso {
+                    gains,
+                    eso_gains,
+                    b0: cfg.eso.b0 as f32,
+                    mpc: Mpc::new(0.0),
+                    eso: EsoFixed::default(),
+                    td: Td::default(),
+                    td_params,
+                };
+                (law, ticks(cfg.mpc_eso.ts_s, cfg.base_dt_s)?)
+            }
+            ControllerKind::Mpc => {
+                let gains = MpcGains::design(&cfg.plant, cfg.mpc).map_err(ConfigError::Design)?;
+                let law = Law::Mpc {
+                    gains,
+                    mpc: Mpc::new(0.0),
+                };
+                (law, ticks(cfg.mpc.ts_s, cfg.base_dt_s)?)
+            }
+            ControllerKind::Pid => {
+                if !cfg.pid.is_valid() {
+                    return Err(ConfigError::Pid);
+                }
+                let law = Law::Pid {
+                    params: cfg.pid,
+                    pid: Pid::new(0.0),
+                };
+                (law, ticks(cfg.pid.ts_s as f64, cfg.base_dt_s)?)
+            }
+            ControllerKind::FuzzyPid => {
+                if !cfg.fuzzy.is_valid() {
+                    return Err(ConfigError::Pid);
+                }
+                let law = Law::Fuzzy {
+                    params: cfg.fuzzy,
+                    fuzzy: FuzzyPid::new(0.0),
+                };
+                (law, ticks(cfg.fuzzy.base.ts_s as f64, cfg.base_dt_s)?)
+            }
+        };
+        Ok(Self {
+            kind: cfg.kind,
+            law,
+            limits: cfg.limits,
+            xo_plausible_m: cfg.xo_plausible_m,
+            n_h,
+            n_c,
+            k: 0,
+            v_cmd_mps: 0.0,
+            saturated: false,
+            started: false,
+        })
+    }
+
+    /// The law this controller runs.
+    pub fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+
+    /// Base ticks per ESO/TD update and per MPC/PID update.
+    pub fn periods(&self) -> (u32, u32) {
+        (self.n_h, self.n_c)
+    }
+
+    /// Base ticks done so far.
+    pub fn tick_count(&self) -> u64 {
+        self.k
+    }
+
+    /// The command in force, m/s.
+    pub fn command(&self) -> f32 {
+        self.v_cmd_mps
+    }
+
+    /// The ESO state `[z1 m, z2 m/s, z3 m/s^2]` (MPC-ESO only).
+    pub fn eso_estimates(&self) -> Option<[f32; 3]> {
+        match &self.law {
+            Law::MpcEso { eso, .. } => Some(eso.to_f32()),
+            _ => None,
+        }
+    }
+
+    /// The raw fixed-point ESO state (MPC-ESO only).
+    pub fn eso_state(&self) -> Option<EsoFixed> {
+        match &self.law {
+            Law::MpcEso { eso, .. } => Some(*eso),
+            _ => None,
+        }
+    }
+
+    /// The TD output `[v1 m, v2 m/s]` (MPC-ESO only).
+    pub fn td_output(&self) -> Option<[f32; 2]> {
+        match &self.law {
+            Law::MpcEso { td, .. } => Some([td.v1_m, td.v2_mps]),
+            _ => None,
+        }
+    }
+
+    /// The commanded power-piston position u, m.
+    pub fn position_command(&self) -> f32 {
+        match &self.law {
+            Law::MpcEso { mpc, .. } | Law::Mpc { mpc, .. } => mpc.u_m,
+            Law::Pid { pid, .. } => pid.u_m,
+            Law::Fuzzy { fuzzy, .. } => fuzzy.pid.u_m,
+        }
+    }
+
+    /// Stop: the command becomes 0 until the next controller update.
+    pub fn hold(&mut self) {
+        self.v_cmd_mps = 0.0;
+    }
+
+    fn bumpless_start(&mut self, xo_m: f32, xi_m: f32) {
+        let u0 = clamp(xi_m, self.limits.x_min_m, self.limits.x_max_m);
+        match &mut self.law {
+            Law::MpcEso { mpc, eso, td, .. } => {
+                mpc.u_m = u0;
+                eso.z1 = Pos::saturating_from_num(xo_m);
+                td.v1_m = xo_m;
+            }
+            Law::Mpc { mpc, .. } => mpc.u_m = u0,
+            Law::Pid { pid, .. } => pid.u_m = u0,
+            Law::Fuzzy { fuzzy, .. } => fuzzy.pid.u_m = u0,
+        }
+    }
+
+    /// One base tick: the measurement at t_k and the reference r(t_k) in, the
+    /// drive command to hold over the next base period out.
+    ///
+    /// Never panics. A NaN or infinite Xo or reference gives the command 0 and
+    /// [`Flags::NON_FINITE_INPUT`], and leaves the law's state untouched.
+    pub fn step(&mut self, sample: &Sample, ref_m: f32) -> Output {
+        let k = self.k;
+        self.k = self.k.wrapping_add(1);
+        let mut flags = 0u8;
+        if !(sample.xo_m.is_finite() && ref_m.is_finite()) {
+            self.v_cmd_mps = 0.0;
+            return Output {
+                v_cmd_mps: 0.0,
+                flags: Flags(Flags::NON_FINITE_INPUT),
+            };
+        }
+        let lim = self.limits;
+        let y = clamp(sample.xo_m, -self.xo_plausible_m, self.xo_plausible_m);
+        if y != sample.xo_m {
+            flags |= Flags::OUT_OF_RANGE;
+        }
+        let r = clamp(ref_m, lim.x_min_m, lim.x_max_m);
+        if r != ref_m {
+            flags |= Flags::REF_CLAMPED;
+        }
+        if !self.started {
+            let xi = if sample.xi_m.is_finite() {
+                sample.xi_m
+            } else {
+                0.0
+            };
+            self.bumpless_start(y, xi);
+            self.started = true;
+        }
+        let eso_tick = k % self.n_h as u64 == 0;
+        let ctl_tick = k % self.n_c as u64 == 0;
+        match &mut self.law {
+            Law::MpcEso {
+                gains,
+                eso_gains,
+                b0,
+                mpc,
+                eso,
+                td,
+                td_params,
+            } => {
+                if eso_tick {
+                    td.update(td_params, r);
+                }
+                if ctl_tick {
+                    let z = eso.to_f32();
+                    let r_td = clamp(td.v1_m, lim.x_min_m, lim.x_max_m);
+                    let obs = Observed {
+                        z2_mps: z[1],
+                        z3_mps2: z[2],
+                        b0_v_mps2: *b0 * self.v_cmd_mps,
+                    };
+                    let out = mpc.tick(gains, &lim, y, r_td, Some(obs));
+                    self.v_cmd_mps = out.v_cmd_mps;
+                    self.saturated = out.saturated;
+                }
+                if eso_tick {
+                    let u = Vel::saturating_from_num(self.v_cmd_mps);
+                    eso.update(eso_gains, Pos::saturating_from_num(y), u);
+                }
+            }
+            Law::Mpc { gains, mpc } => {
+                if ctl_tick {
+                    let out = mpc.tick(gains, &lim, y, r, None);
+                    self.v_cmd_mps = out.v_cmd_mps;
+                    self.saturated = out.saturated;
+                }
+            }
+            Law::Pid { params, pid } => {
+                if ctl_tick {
+                    let out = pid.tick(params, &lim, y, r);
+                    self.v_cmd_mps = out.v_cmd_mps;
+                    self.saturated = out.saturated;
+                }
+            }
+            Law::Fuzzy { params, fuzzy } => {
+                if ctl_tick {
+                    let out = fuzzy.tick(params, &lim, y, r);
+                    self.v_cmd_mps = out.v_cmd_mps;
+                    self.saturated = out.saturated;
+                }
+            }
+        }
+        if self.saturated {
+            flags |= Flags::SATURATED;
+        }
+        if !self.v_cmd_mps.is_finite() {
+            self.v_cmd_mps = 0.0;
+            flags |= Flags::NON_FINITE_OUTPUT;
+        }
+        let v = clamp(self.v_cmd_mps, -lim.v_max_mps, lim.v_max_mps);
+        Output {
+            v_cmd_mps: v,
+            flags: Flags(flags),
+        }
+    }
+}
