@@ -182,10 +182,12 @@ impl Mpc {
         };
         let du_raw = g.ky * (r_m - y_m) - (g.kx[0] * dx[0] + g.kx[1] * dx[1] + g.kx[2] * dx[2]);
         let du_max = lim.v_max_mps * g.ts_s;
-        let du = clamp(du_raw, -du_max, du_max);
-        let u_new = clamp(self.u_m + du, lim.x_min_m, lim.x_max_m);
+        let du_sat = clamp(du_raw, -du_max, du_max);
+        let u_free = self.u_m + du_sat;
+        let u_new = clamp(u_free, lim.x_min_m, lim.x_max_m);
         let du = u_new - self.u_m;
-        let saturated = du != du_raw;
+        // From the clamps themselves (u_new - u differs from du by rounding).
+        let saturated = du_sat != du_raw || u_new != u_free;
         match source {
             StateSource::Model => {
                 // The plain MPC's model state is xm; plant.md 6.4 starts it at 0

@@ -88,9 +88,17 @@ impl Pid {
         };
         let v = g.kp * e + g.ki * self.integral_ms - g.kd * dy;
         let v_sat = clamp(v, -lim.v_max_mps, lim.v_max_mps);
-        let u_new = clamp(self.u_m + v_sat * g.ts_s, lim.x_min_m, lim.x_max_m);
-        let v_cmd = (u_new - self.u_m) / g.ts_s;
-        let saturated = v_cmd != v;
+        let u_free = self.u_m + v_sat * g.ts_s;
+        let u_new = clamp(u_free, lim.x_min_m, lim.x_max_m);
+        // Decide saturation from the clamps themselves: re-deriving the
+        // command from u would differ from v by rounding and look clamped.
+        let stroke_hit = u_new != u_free;
+        let saturated = v_sat != v || stroke_hit;
+        let v_cmd = if stroke_hit {
+            (u_new - self.u_m) / g.ts_s
+        } else {
+            v_sat
+        };
         if !saturated || (v > 0.0) != (e > 0.0) {
             self.integral_ms += e * g.ts_s;
         }
@@ -122,6 +130,26 @@ mod tests {
         // I = 0.001 m s after the first tick.
         let out = pid.tick(&PidParams::PAPER, &lim(), 0.0, 0.01);
         assert!((out.v_cmd_mps - (0.027 + 0.05 * 0.001)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn integrates_away_from_the_origin_without_false_clamps() {
+        // Regression: re-deriving the command from the integrated position
+        // differs from v by f32 rounding away from u = 0 and once looked like
+        // a clamp, which blocked the integral.
+        let mut pid = Pid::new(0.041_549);
+        let mut want = 0.0f32;
+        for i in 0..50 {
+            let e = 1e-4 * (1.0 + i as f32 * 0.01);
+            let out = pid.tick(&PidParams::PAPER, &lim(), 0.03, 0.03 + e);
+            assert!(!out.saturated, "tick {i}");
+            want += e * 0.1;
+        }
+        assert!(
+            (pid.integral_ms - want).abs() < 1e-9,
+            "{} vs {want}",
+            pid.integral_ms
+        );
     }
 
     #[test]
