@@ -488,8 +488,8 @@ impl Controller {
             self.bumpless_start(y, xi);
             self.started = true;
         }
-        let eso_tick = k % self.n_h as u64 == 0;
-        let ctl_tick = k % self.n_c as u64 == 0;
+        let eso_tick = k.is_multiple_of(self.n_h as u64);
+        let ctl_tick = k.is_multiple_of(self.n_c as u64);
         match &mut self.law {
             Law::MpcEso {
                 gains,
