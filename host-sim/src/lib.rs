@@ -2,9 +2,14 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod config;
 pub mod gains;
 pub mod metrics;
+pub mod paper;
 pub mod plant;
+pub mod plot;
+pub mod run;
+pub mod runlog;
 pub mod scenario;
 pub mod sensors;
 pub mod sim;

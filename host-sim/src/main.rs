@@ -5,6 +5,9 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use dca_core::controller::Preset;
 use host_sim::gains::{gains, GainOverrides};
+use host_sim::paper::{run_paper, table_markdown, PaperOptions};
+use host_sim::run::{execute, trace_metrics, RunRequest};
+use std::path::PathBuf;
 
 /// Simulator and tools for the miniature double-cylinder hydraulic actuator.
 #[derive(Parser, Debug)]
@@ -16,6 +19,46 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The paper's experiments: 4 scenarios x 4 controllers, the table against
+    /// the paper, and a Markdown report with figures.
+    Paper {
+        /// Report directory.
+        #[arg(long, default_value = "out/paper")]
+        out: PathBuf,
+        /// Preset: paper or fast.
+        #[arg(long, default_value = "paper")]
+        config: String,
+        /// Also write every run's log into OUT/logs.
+        #[arg(long)]
+        logs: bool,
+    },
+    /// Simulate one scenario and write its run log (interfaces.md section 3).
+    Run {
+        /// Scenario: step, sine, stepload, sineload, openloop, or a TOML file.
+        #[arg(long)]
+        scenario: String,
+        /// Controller: mpc-eso, mpc, pid or fuzzy-pid (else the scenario file's).
+        #[arg(long)]
+        controller: Option<String>,
+        /// Configuration: paper, fast or a TOML file (default paper).
+        #[arg(long)]
+        config: Option<String>,
+        /// Hose model of the plant (default nonlinear).
+        #[arg(long)]
+        hose: Option<String>,
+        /// Sensor mode: ideal or realistic (default ideal).
+        #[arg(long)]
+        sensors: Option<String>,
+        /// Noise seed (default 0).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Plant step in seconds (default 1e-4; 2e-4 for the GRNN hose).
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Where to write the run log (CSV).
+        #[arg(long)]
+        log: PathBuf,
+    },
     /// Print the MPC design (matrices and gains) of both MPC variants as JSON.
     Gains {
         /// Preset: paper or fast.
@@ -44,6 +87,52 @@ enum Command {
 
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
+        Command::Paper { out, config, logs } => {
+            let preset = Preset::from_name(&config)
+                .ok_or_else(|| format!("unknown --config '{config}': expected paper or fast"))?;
+            let res = run_paper(&PaperOptions {
+                out_dir: out,
+                preset,
+                write_logs: logs,
+                progress: true,
+            })?;
+            println!("{}", table_markdown(&res.table));
+            println!("report: {}", res.report.display());
+            Ok(())
+        }
+        Command::Run {
+            scenario,
+            controller,
+            config,
+            hose,
+            sensors,
+            seed,
+            dt,
+            log,
+        } => {
+            let req = RunRequest {
+                scenario,
+                controller,
+                config,
+                hose,
+                sensors,
+                seed,
+                dt_s: dt,
+            };
+            let (spec, trace) = execute(&req, &log)?;
+            let m = trace_metrics(&trace, &spec.scenario);
+            eprintln!(
+                "{} / {} / {} hose / {} sensors: {} rows -> {}",
+                spec.scenario.name(),
+                trace.controller,
+                spec.plant.hose_model().name(),
+                spec.sensors.name(),
+                trace.rows.len(),
+                log.display()
+            );
+            println!("{}", serde_json::to_string(&m).map_err(|e| e.to_string())?);
+            Ok(())
+        }
         Command::Gains {
             config,
             np,
