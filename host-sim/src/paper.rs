@@ -81,6 +81,8 @@ pub struct PaperResult {
 }
 
 type Key = (String, String);
+/// The runs of the job by (scenario, controller or hose).
+pub type Runs = BTreeMap<Key, (RunSpec, Trace)>;
 
 fn spec_for(scenario: &str, kind: ControllerKind, preset: Preset) -> RunSpec {
     RunSpec {
@@ -94,7 +96,7 @@ fn spec_for(scenario: &str, kind: ControllerKind, preset: Preset) -> RunSpec {
 }
 
 /// Run all experiments (in parallel) and return the traces by (scenario, controller).
-pub fn run_all(preset: Preset, progress: bool) -> Result<BTreeMap<Key, (RunSpec, Trace)>, String> {
+pub fn run_all(preset: Preset, progress: bool) -> Result<Runs, String> {
     let mut jobs: Vec<(Key, RunSpec)> = Vec::new();
     for sc in SCENARIOS {
         for kind in ControllerKind::ALL {
@@ -120,7 +122,7 @@ pub fn run_all(preset: Preset, progress: bool) -> Result<BTreeMap<Key, (RunSpec,
         )
         .expect("valid template"),
     );
-    let out: Result<Vec<(Key, (RunSpec, Trace))>, String> = jobs
+    let out: Result<Runs, String> = jobs
         .into_par_iter()
         .map(|(key, spec)| {
             let trace = run(&spec).map_err(|e| format!("{}/{}: {e}", key.0, key.1))?;
@@ -130,7 +132,7 @@ pub fn run_all(preset: Preset, progress: bool) -> Result<BTreeMap<Key, (RunSpec,
         })
         .collect();
     bar.finish_and_clear();
-    Ok(out?.into_iter().collect())
+    out
 }
 
 fn m<'a>(ms: &'a BTreeMap<Key, Metrics>, sc: &str, kind: ControllerKind) -> Option<&'a Metrics> {
@@ -270,12 +272,12 @@ fn series(tr: &Trace, f: impl Fn(&crate::sim::Row) -> f64) -> Vec<(f64, f64)> {
     tr.rows.iter().map(|r| (r.t_s, f(r))).collect()
 }
 
-fn get<'a>(runs: &'a BTreeMap<Key, (RunSpec, Trace)>, sc: &str, who: &str) -> Option<&'a Trace> {
+fn get<'a>(runs: &'a Runs, sc: &str, who: &str) -> Option<&'a Trace> {
     runs.get(&(sc.to_string(), who.to_string())).map(|(_, t)| t)
 }
 
 fn controller_panel(
-    runs: &BTreeMap<Key, (RunSpec, Trace)>,
+    runs: &Runs,
     sc: &str,
     title: &str,
     y_label: &str,
@@ -297,7 +299,7 @@ fn controller_panel(
 }
 
 fn figures(
-    runs: &BTreeMap<Key, (RunSpec, Trace)>,
+    runs: &Runs,
     dir: &Path,
 ) -> Result<Vec<(String, String)>, String> {
     let mut figs = Vec::new();
