@@ -298,10 +298,7 @@ fn controller_panel(
     p
 }
 
-fn figures(
-    runs: &Runs,
-    dir: &Path,
-) -> Result<Vec<(String, String)>, String> {
+fn figures(runs: &Runs, dir: &Path) -> Result<Vec<(String, String)>, String> {
     let mut figs = Vec::new();
     let mut save = |name: &str, caption: &str, panels: Vec<Panel>| -> Result<(), String> {
         plot::save(&dir.join(name), &panels, 1000, 260)?;
