@@ -2,6 +2,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod batch;
+pub mod bench;
 pub mod config;
 pub mod gains;
 pub mod metrics;

@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dca_core::controller::Preset;
+use host_sim::batch::{sweep, write_csv, SweepParam};
 use host_sim::gains::{gains, GainOverrides};
 use host_sim::paper::{run_paper, table_markdown, PaperOptions};
 use host_sim::run::{execute, trace_metrics, RunRequest};
@@ -19,6 +20,41 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Benchmarks of the simulator (real-time factors, derivative cost, batch
+    /// speed-up), printed as a table.
+    Bench {
+        /// Repetitions of each measurement (the best is kept).
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+    },
+    /// Parameter sweep and/or Monte Carlo over noise seeds, on every core;
+    /// one CSV row of metrics per run.
+    Sweep {
+        /// Scenario: a nominal name or a TOML file.
+        #[arg(long)]
+        scenario: String,
+        /// Controller: mpc-eso, mpc, pid or fuzzy-pid.
+        #[arg(long)]
+        controller: Option<String>,
+        /// Configuration: paper, fast or a TOML file.
+        #[arg(long)]
+        config: Option<String>,
+        /// Hose model of the plant.
+        #[arg(long)]
+        hose: Option<String>,
+        /// Sensor mode: ideal or realistic.
+        #[arg(long)]
+        sensors: Option<String>,
+        /// A swept parameter, `table.key=v1,v2,...` (repeatable), e.g. mpc_eso.rw=10,33,100.
+        #[arg(long = "param")]
+        params: Vec<String>,
+        /// Noise seeds: `A..B` (B excluded) or `a,b,c` (default 0).
+        #[arg(long, default_value = "0")]
+        seeds: String,
+        /// Where to write the CSV.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// The paper's experiments: 4 scenarios x 4 controllers, the table against
     /// the paper, and a Markdown report with figures.
     Paper {
@@ -85,8 +121,67 @@ enum Command {
     },
 }
 
+fn parse_seeds(s: &str) -> Result<Vec<u64>, String> {
+    let bad = || format!("--seeds '{s}': expected A..B or a,b,c");
+    if let Some((a, b)) = s.split_once("..") {
+        let (a, b): (u64, u64) = (
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        );
+        if b <= a || b - a > 100_000 {
+            return Err(bad());
+        }
+        Ok((a..b).collect())
+    } else {
+        s.split(',')
+            .map(|x| x.trim().parse().map_err(|_| bad()))
+            .collect()
+    }
+}
+
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
+        Command::Bench { reps } => {
+            print!("{}", host_sim::bench::table(&host_sim::bench::bench(reps)));
+            Ok(())
+        }
+        Command::Sweep {
+            scenario,
+            controller,
+            config,
+            hose,
+            sensors,
+            params,
+            seeds,
+            out,
+        } => {
+            let params = params
+                .iter()
+                .map(|p| SweepParam::parse(p))
+                .collect::<Result<Vec<_>, _>>()?;
+            let seeds = parse_seeds(&seeds)?;
+            let base = RunRequest {
+                scenario,
+                controller,
+                config,
+                hose,
+                sensors,
+                ..RunRequest::default()
+            };
+            let t0 = std::time::Instant::now();
+            let rows = sweep(&base, &params, &seeds, true)?;
+            write_csv(&rows, &out)?;
+            let failed = rows.iter().filter(|r| r.result.is_err()).count();
+            eprintln!(
+                "{} runs ({} failed) in {:.1} s on {} threads -> {}",
+                rows.len(),
+                failed,
+                t0.elapsed().as_secs_f64(),
+                rayon::current_num_threads(),
+                out.display()
+            );
+            Ok(())
+        }
         Command::Paper { out, config, logs } => {
             let preset = Preset::from_name(&config)
                 .ok_or_else(|| format!("unknown --config '{config}': expected paper or fast"))?;

@@ -4,7 +4,7 @@
 //! Precedence: a command-line option wins over the scenario file's setting,
 //! which wins over the default (`paper`, `nonlinear`, `ideal`, seed 0).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
@@ -155,7 +155,7 @@ pub fn trace_metrics(trace: &Trace, scenario: &Scenario) -> Metrics {
 }
 
 /// Run the request, write the log to `log`, and return the trace.
-pub fn execute(req: &RunRequest, log: &PathBuf) -> Result<(RunSpec, Trace), String> {
+pub fn execute(req: &RunRequest, log: &Path) -> Result<(RunSpec, Trace), String> {
     let spec = resolve(req)?;
     let trace = run(&spec).map_err(|e| e.to_string())?;
     RunLog::from_trace(&trace, &log_meta(&spec))
