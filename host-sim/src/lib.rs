@@ -5,6 +5,7 @@
 pub mod batch;
 pub mod bench;
 pub mod config;
+pub mod effects;
 pub mod gains;
 pub mod metrics;
 pub mod paper;

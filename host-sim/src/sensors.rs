@@ -18,6 +18,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use crate::effects::SensorDelay;
+
 /// How sensors report the plant state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SensorMode {
@@ -117,11 +119,83 @@ pub struct Readings {
     pub ft_n: f64,
 }
 
+/// Transport delay and first-order lag of the readings (the `sensor_delay`
+/// effect), applied to the true values before the ADC.
+#[derive(Clone, Debug)]
+struct DelayLine {
+    /// Past true Xo values, oldest first (length = delay in samples).
+    xo_past: std::collections::VecDeque<f64>,
+    /// Filter gains 1 - exp(-dt / tau) (1 = no filter).
+    xo_gain: f64,
+    p_gain: f64,
+    /// Filter states (None until the first sample).
+    xo_f: Option<f64>,
+    p_f: Option<(f64, f64)>,
+}
+
+impl DelayLine {
+    fn new(d: &SensorDelay, dt_s: f64) -> Self {
+        let n = (d.xo_delay_s / dt_s).round().max(0.0) as usize;
+        let gain = |tau: f64| {
+            if tau > 0.0 {
+                1.0 - (-dt_s / tau).exp()
+            } else {
+                1.0
+            }
+        };
+        Self {
+            xo_past: std::collections::VecDeque::with_capacity(n + 1),
+            xo_gain: gain(d.xo_tau_s),
+            p_gain: gain(d.p_tau_s),
+            xo_f: None,
+            p_f: None,
+        }
+        .with_len(n)
+    }
+
+    fn with_len(mut self, n: usize) -> Self {
+        // Marks the length with NaN until filled with the first sample.
+        self.xo_past.extend(std::iter::repeat_n(f64::NAN, n));
+        self
+    }
+
+    fn apply(&mut self, truth: &Readings) -> Readings {
+        // Transport delay: a run starts at rest, so the first sample fills the past.
+        if self.xo_past.front().is_some_and(|v| v.is_nan()) {
+            for v in self.xo_past.iter_mut() {
+                *v = truth.xo_m;
+            }
+        }
+        self.xo_past.push_back(truth.xo_m);
+        let xo_delayed = self.xo_past.pop_front().unwrap_or(truth.xo_m);
+        let xo = match self.xo_f {
+            None => xo_delayed,
+            Some(f) => f + self.xo_gain * (xo_delayed - f),
+        };
+        self.xo_f = Some(xo);
+        let (p1, p2) = match self.p_f {
+            None => (truth.p1_pa, truth.p2_pa),
+            Some((f1, f2)) => (
+                f1 + self.p_gain * (truth.p1_pa - f1),
+                f2 + self.p_gain * (truth.p2_pa - f2),
+            ),
+        };
+        self.p_f = Some((p1, p2));
+        Readings {
+            xo_m: xo,
+            p1_pa: p1,
+            p2_pa: p2,
+            ..*truth
+        }
+    }
+}
+
 /// The sensor set of a run.
 #[derive(Clone, Debug)]
 pub struct Sensors {
     mode: SensorMode,
     rng: ChaCha8Rng,
+    delay: Option<DelayLine>,
 }
 
 impl Sensors {
@@ -130,7 +204,14 @@ impl Sensors {
         Self {
             mode,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            delay: None,
         }
+    }
+
+    /// Add the `sensor_delay` effect for readings taken every `dt_s`.
+    pub fn with_delay(mut self, d: &SensorDelay, dt_s: f64) -> Self {
+        self.delay = Some(DelayLine::new(d, dt_s));
+        self
     }
 
     /// The mode.
@@ -148,8 +229,16 @@ impl Sensors {
         ch.reading(ch.code(v, n))
     }
 
-    /// Read the true values (one sample instant).
+    /// Read the true values (one sample instant; call once per sample period).
     pub fn read(&mut self, truth: &Readings) -> Readings {
+        let delayed;
+        let truth = match &mut self.delay {
+            Some(d) => {
+                delayed = d.apply(truth);
+                &delayed
+            }
+            None => truth,
+        };
         match self.mode {
             SensorMode::Ideal => *truth,
             SensorMode::Realistic => Readings {
@@ -166,6 +255,31 @@ impl Sensors {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn delay_shifts_and_lag_smooths_the_position() {
+        let d = SensorDelay {
+            xo_delay_s: 3e-3,
+            xo_tau_s: 0.0,
+            p_tau_s: 0.0,
+        };
+        let mut s = Sensors::new(SensorMode::Ideal, 0).with_delay(&d, 1e-3);
+        let r = |x: f64| Readings {
+            xo_m: x,
+            ..Readings::default()
+        };
+        let out: Vec<f64> = (0..6).map(|i| s.read(&r(i as f64)).xo_m).collect();
+        assert_eq!(out, vec![0.0, 0.0, 0.0, 0.0, 1.0, 2.0]);
+        let lag = SensorDelay {
+            xo_delay_s: 0.0,
+            xo_tau_s: 1e-3,
+            p_tau_s: 1e-3,
+        };
+        let mut s = Sensors::new(SensorMode::Ideal, 0).with_delay(&lag, 1e-3);
+        s.read(&r(0.0));
+        let y = s.read(&r(1.0)).xo_m;
+        assert!((y - (1.0 - (-1.0f64).exp())).abs() < 1e-12, "{y}");
+    }
 
     #[test]
     fn lsb_values_of_section_5() {
