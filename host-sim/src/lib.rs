@@ -7,6 +7,7 @@ pub mod bench;
 pub mod config;
 pub mod effects;
 pub mod gains;
+pub mod gap;
 pub mod metrics;
 pub mod paper;
 pub mod plant;
