@@ -36,6 +36,7 @@ fn spec(scenario: &str, kind: ControllerKind, hose: HoseModel, dt_s: f64) -> Run
         scenario: Scenario::by_name(scenario).expect("nominal scenario"),
         controller: ControllerConfig::preset(Preset::Paper, kind),
         plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
+        effects: Default::default(),
         sensors: SensorMode::Ideal,
         seed: 0,
         dt_s,

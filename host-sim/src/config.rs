@@ -46,6 +46,8 @@
 //! hose = "nonlinear"                # linear | rigid | ...
 //! sensors = "realistic"
 //! seed = 3
+//! [plant.effects.leakage]           # any effect of plant.md section 12
+//! g_m3pspa = 1e-13
 //! ```
 //!
 //! Errors name the file, the line and the field.
@@ -459,6 +461,8 @@ pub struct PlantSection {
     pub seed: Option<u64>,
     /// Plant step, s.
     pub dt_s: Option<f64>,
+    /// Unmodelled effects, e.g. `[plant.effects.leakage] g_m3pspa = 1e-13`.
+    pub effects: Option<crate::effects::Effects>,
 }
 
 /// A scenario file.

@@ -504,7 +504,8 @@ mod tests {
             "air:fraction=-1",
             "motor_limit:force_stall_n=0",
         ] {
-            assert!(Effects::NONE.parse_arg(bad).is_err(), "{bad}");
+            let mut e = Effects::NONE;
+            assert!(e.parse_arg(bad).is_err(), "{bad}");
         }
         let toml: Effects =
             toml::from_str("[air]\nfraction = 0.01\n[backlash]\nplay_m = 1e-4\n").unwrap();

@@ -12,6 +12,7 @@ pub mod metrics;
 pub mod paper;
 pub mod plant;
 pub mod plot;
+pub mod rig;
 pub mod run;
 pub mod runlog;
 pub mod scenario;

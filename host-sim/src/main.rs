@@ -91,6 +91,10 @@ enum Command {
         /// Plant step in seconds (default 1e-4; 2e-4 for the GRNN hose).
         #[arg(long)]
         dt: Option<f64>,
+        /// An unmodelled effect (repeatable): `name` with typical parameters or
+        /// `name:param=value,...`, e.g. leakage:g_m3pspa=1e-13 (plant.md section 12).
+        #[arg(long = "effect")]
+        effects: Vec<String>,
         /// Where to write the run log (CSV).
         #[arg(long)]
         log: PathBuf,
@@ -203,6 +207,7 @@ fn run(cli: Cli) -> Result<(), String> {
             sensors,
             seed,
             dt,
+            effects,
             log,
         } => {
             let req = RunRequest {
@@ -213,6 +218,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 sensors,
                 seed,
                 dt_s: dt,
+                effects,
             };
             let (spec, trace) = execute(&req, &log)?;
             let m = trace_metrics(&trace, &spec.scenario);

@@ -89,6 +89,7 @@ fn spec_for(scenario: &str, kind: ControllerKind, preset: Preset) -> RunSpec {
         scenario: Scenario::by_name(scenario).expect("nominal scenario"),
         controller: ControllerConfig::preset(preset, kind),
         plant: Plant::nominal(),
+        effects: Default::default(),
         sensors: SensorMode::Ideal,
         seed: 0,
         dt_s: 1e-4,

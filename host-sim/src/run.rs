@@ -33,6 +33,8 @@ pub struct RunRequest {
     pub seed: Option<u64>,
     /// Plant step, s (default 1e-4).
     pub dt_s: Option<f64>,
+    /// Effects, `name` or `name:param=value,...` (added to the scenario file's).
+    pub effects: Vec<String>,
 }
 
 fn is_toml(s: &str) -> bool {
@@ -108,10 +110,20 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, String> {
         NOMINAL_DT_S
     };
     let dt_s = req.dt_s.or(plant_sec.dt_s).unwrap_or(default_dt);
+    let mut effects = plant_sec.effects.unwrap_or_default();
+    effects
+        .validate()
+        .map_err(|e| format!("{}: {e}", req.scenario))?;
+    for arg in &req.effects {
+        effects
+            .parse_arg(arg)
+            .map_err(|e| format!("--effect: {e}"))?;
+    }
     Ok(RunSpec {
         scenario,
         controller,
         plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
+        effects,
         sensors,
         seed: req.seed.or(plant_sec.seed).unwrap_or(0),
         dt_s,
@@ -120,7 +132,30 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, String> {
 
 /// The metadata lines a simulated run's log carries.
 pub fn log_meta(spec: &RunSpec) -> Vec<(&'static str, String)> {
+    let effects: Vec<String> = spec
+        .effects
+        .active()
+        .iter()
+        .map(|k| {
+            let v = spec.effects.get(*k).unwrap_or_default();
+            let kv: Vec<String> = k
+                .params()
+                .iter()
+                .zip(v)
+                .map(|(p, x)| format!("{}={x:e}", p.name))
+                .collect();
+            format!("{}:{}", k.name(), kv.join(","))
+        })
+        .collect();
     vec![
+        (
+            "effects",
+            if effects.is_empty() {
+                "none".into()
+            } else {
+                effects.join(";")
+            },
+        ),
         ("hose", spec.plant.hose_model().name().to_string()),
         ("sensors", spec.sensors.name().to_string()),
         ("seed", spec.seed.to_string()),
@@ -192,6 +227,29 @@ mod tests {
         assert_eq!(spec.controller.pid.ts_s, 0.01);
         assert_eq!(spec.sensors, SensorMode::Realistic);
         assert_eq!(spec.seed, 9);
+    }
+
+    #[test]
+    fn effects_from_the_command_line() {
+        let spec = resolve(&RunRequest {
+            effects: vec!["leakage:g_m3pspa=2e-13".into(), "friction".into()],
+            ..req("stepload")
+        })
+        .unwrap();
+        assert_eq!(spec.effects.leakage.unwrap().g_m3pspa, 2e-13);
+        assert!(spec.effects.friction.is_some());
+        let meta = log_meta(&spec);
+        assert!(
+            meta[0].1.starts_with("leakage:g_m3pspa=2e-13;friction:"),
+            "{:?}",
+            meta[0]
+        );
+        let e = resolve(&RunRequest {
+            effects: vec!["gremlins".into()],
+            ..req("step")
+        })
+        .unwrap_err();
+        assert!(e.contains("--effect") && e.contains("gremlins"), "{e}");
     }
 
     #[test]

@@ -13,7 +13,9 @@
 
 use dca_core::controller::{Controller, ControllerConfig, Output, Sample};
 
+use crate::effects::Effects;
 use crate::plant::{Plant, State};
+use crate::rig::Rig;
 use crate::scenario::{tick_time_s, Command, Scenario};
 use crate::sensors::{Readings, SensorMode, Sensors};
 
@@ -26,6 +28,8 @@ pub struct RunSpec {
     pub controller: ControllerConfig,
     /// The plant (hose model, parameters).
     pub plant: Plant,
+    /// Unmodelled effects switched on (none: the nominal model).
+    pub effects: Effects,
     /// Sensor mode.
     pub sensors: SensorMode,
     /// Noise seed.
@@ -91,12 +95,15 @@ pub enum SimError {
     Config(String),
     /// The plant step is not positive, or 1 ms is not a whole number of steps.
     Step(f64),
+    /// The effects cannot be combined with this plant.
+    Effects(String),
 }
 
 impl std::fmt::Display for SimError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Config(s) => write!(f, "controller configuration refused: {s}"),
+            Self::Effects(s) => write!(f, "effects refused: {s}"),
             Self::Step(dt) => write!(
                 f,
                 "plant step {dt} s must be > 0 and divide the 1 ms log grid"
@@ -133,15 +140,20 @@ pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, Si
     } else {
         Some(Controller::new(&cfg).map_err(|e| SimError::Config(e.as_str().to_string()))?)
     };
-    let plant = &spec.plant;
+    let rig = Rig::new(spec.plant.clone(), spec.effects).map_err(|e| SimError::Effects(e.0))?;
+    let plant = rig.plant();
     let scenario = &spec.scenario;
     let mut sensors = Sensors::new(spec.sensors, spec.seed);
-    let mut x = plant.initial_state(scenario.load().value(0.0));
+    if let Some(d) = &spec.effects.sensor_delay {
+        sensors = sensors.with_delay(d, dt);
+    }
+    let mut s = rig.initial_state(scenario.load().value(0.0));
     let n = scenario.n_steps(dt);
     let mut rows = Vec::with_capacity((n / log_every) as usize);
     for k in 0..n {
         let t = tick_time_s(k, dt);
         let ft = scenario.load().value(t);
+        let x = s.x;
         let truth = Readings {
             xi_m: x.xi_m,
             xo_m: x.xo_m,
@@ -182,7 +194,11 @@ pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, Si
             out.v_cmd_mps as f64
         };
         if k % log_every == 0 {
-            let d = plant.derivative(&x, v_cmd, ft);
+            let d = if spec.effects.is_none() {
+                plant.derivative(&x, v_cmd, ft)
+            } else {
+                rig.derivative(&s, v_cmd, ft).0
+            };
             rows.push(Row {
                 t_s: t,
                 ref_m,
@@ -194,7 +210,7 @@ pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, Si
                 flags: out.flags.0,
             });
         }
-        plant.step(&mut x, v_cmd, ft, dt);
+        rig.step(&mut s, v_cmd, ft, dt);
     }
     Ok(Trace {
         scenario: scenario.name().to_string(),

@@ -19,6 +19,7 @@ fn worst_error(preset: Preset, scenario: &str, sensors: SensorMode) -> ([f64; 3]
         scenario: Scenario::by_name(scenario).unwrap(),
         controller: cfg,
         plant: Plant::nominal(),
+        effects: Default::default(),
         sensors,
         seed: 3,
         dt_s: 1e-4,

@@ -96,9 +96,9 @@ pub fn labels(log: &RunLog) -> Vec<Label> {
     };
     // Reversals: sign changes of the velocity while moving.
     let mut last_sign = 0.0f64;
-    for i in 0..n {
-        if vel[i].abs() > MOVE_MPS {
-            let s = vel[i].signum();
+    for (i, v) in vel.iter().enumerate() {
+        if v.abs() > MOVE_MPS {
+            let s = v.signum();
             if last_sign != 0.0 && s != last_sign {
                 let t = i as f64 * dt;
                 mark(&mut label, t - 0.1, t + 0.3, Label::Reversal);

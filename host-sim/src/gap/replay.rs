@@ -1,0 +1,86 @@
+//! Replay: the model driven open loop by a run log's recorded inputs.
+//!
+//! Inputs are the recorded drive command `vcmd_mps` (through the servo model,
+//! so the servo and the ball screw are part of what is tested) and the
+//! recorded load `ft_n`, each held over one log interval (the firmware holds
+//! its command for a control period; the simulator's commands change only at
+//! controller ticks, which fall on the log grid). The model starts at rest at
+//! the first measured positions and load (averaged over the first 20 ms when
+//! the run starts at rest). The outputs are what ideal sensors
+//! (with the candidate `sensor_delay`, if any) would have reported at the log
+//! instants, for the channels the gap compares.
+
+use crate::rig::Rig;
+use crate::runlog::RunLog;
+use crate::sensors::{Readings, SensorMode, Sensors};
+
+/// The channels compared, in this order everywhere in the diagnosis.
+pub const CHANNELS: [&str; 4] = ["xo_m", "xi_m", "p1_pa", "p2_pa"];
+
+/// Measured values of the compared channels.
+pub fn measured(log: &RunLog) -> [&[f64]; 4] {
+    [&log.xo_m, &log.xi_m, &log.p1_pa, &log.p2_pa]
+}
+
+/// The replayed channels at the log instants (NaN after a divergence).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Replay {
+    /// Xo, Xi, P1, P2 in [`CHANNELS`] order.
+    pub ch: [Vec<f64>; 4],
+}
+
+fn median_head(v: &[f64], n: usize) -> f64 {
+    super::stats::median(&v[..n.min(v.len())])
+}
+
+/// Replay `log` on `rig` with plant steps of at most `max_dt_s`.
+pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
+    let n = log.len();
+    let log_dt = log.dt_s();
+    let sub = ((log_dt / max_dt_s).ceil() as usize).max(1);
+    let h = log_dt / sub as f64;
+    let head = ((0.02 / log_dt.max(1e-6)) as usize).max(1);
+    // Start at the measured rest: medians of the first 20 ms when the encoder
+    // shows no motion there (they average the noise out), else the first samples.
+    let at_rest = log.xi_m[..head.min(n)]
+        .iter()
+        .all(|x| (x - log.xi_m[0]).abs() < 1e-6);
+    let start = |v: &[f64]| if at_rest { median_head(v, head) } else { v[0] };
+    let mut s = rig.initial_state(start(&log.ft_n));
+    s.x.xi_m = start(&log.xi_m);
+    s.x.xo_m = start(&log.xo_m);
+    s.ext.xp_m = s.x.xi_m;
+    let mut sensors = Sensors::new(SensorMode::Ideal, 0);
+    if let Some(d) = &rig.effects().sensor_delay {
+        sensors = sensors.with_delay(d, log_dt);
+    }
+    let mut ch: [Vec<f64>; 4] = Default::default();
+    for c in ch.iter_mut() {
+        c.reserve(n);
+    }
+    let mut diverged = false;
+    for i in 0..n {
+        if diverged {
+            for c in ch.iter_mut() {
+                c.push(f64::NAN);
+            }
+            continue;
+        }
+        let x = s.x;
+        let r = sensors.read(&Readings {
+            xi_m: x.xi_m,
+            xo_m: x.xo_m,
+            p1_pa: x.p1_pa,
+            p2_pa: x.p2_pa,
+            ft_n: log.ft_n[i],
+        });
+        for (c, v) in ch.iter_mut().zip([r.xo_m, r.xi_m, r.p1_pa, r.p2_pa]) {
+            c.push(v);
+        }
+        for _ in 0..sub {
+            rig.step(&mut s, log.vcmd_mps[i], log.ft_n[i], h);
+        }
+        diverged = !s.is_finite();
+    }
+    Replay { ch }
+}
