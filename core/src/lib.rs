@@ -19,15 +19,20 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod console;
 pub mod controller;
 pub mod design;
 pub mod eso;
+pub mod frame;
 pub mod fuzzy;
 pub mod fxp;
 pub mod mpc;
 pub mod params;
 pub mod pid;
+pub mod settings;
+pub mod supervisor;
 pub mod td;
+pub mod text;
 
 pub use controller::{
     ConfigError, Controller, ControllerConfig, ControllerKind, Flags, Output, Preset, Sample,

@@ -2,17 +2,34 @@
 //! on an STM32F417VE.
 //!
 //! Structure after quartiq/stabilizer: [`hardware::setup`] configures the chip and
-//! returns one [`hardware::Devices`] struct that `init` unpacks; the tasks below never
-//! touch registers themselves.
+//! returns one [`hardware::Devices`] struct that `init` unpacks; the tasks never touch
+//! registers themselves. All control logic is dca-core's, called unchanged:
+//! [`dca_core::supervisor::ControlLoop`] (supervisor, reference, controller) per tick,
+//! [`dca_core::console::Console`] for the serial console,
+//! [`dca_core::settings::Settings`] for the settings and their flash image, and
+//! [`dca_core::frame`] for the HIL link.
 //!
-//! With the `qemu` feature the same app runs on QEMU's `netduinoplus2` (STM32F405):
-//! see the `qemu` module.
+//! Tasks, by priority:
+//!
+//! | task | priority | released by | period / deadline |
+//! |---|---|---|---|
+//! | `control` | 3 | ADC scan done (board), SysTick (QEMU), a HIL frame | 1 ms / [`DEADLINE_US`] |
+//! | `adc_done` | 3 | DMA2 stream 0 transfer complete | 1 ms / before the next scan |
+//! | `tick` | 3 | SysTick | 1 ms / 1 ms |
+//! | `hil_rx` | 3 | USART2 byte received | per byte / one byte time |
+//! | `console_rx` | 2 | USART1 byte received | per byte / one byte time |
+//! | `console` | 1 | bytes and telemetry rows | none (best effort) |
+//! | idle | 0 | - | `wfi` |
+//!
+//! With the `qemu` feature the same app runs on QEMU's `netduinoplus2`
+//! (STM32F405): see the `qemu` module.
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod hardware;
+pub mod machine;
 #[cfg(feature = "qemu")]
 pub mod qemu;
 
@@ -21,76 +38,239 @@ pub mod qemu;
 use defmt_rtt as _;
 #[cfg(feature = "qemu")]
 use defmt_semihosting as _;
-// The panic handler: the message over defmt, then `udf` (a HardFault).
-use panic_probe as _;
+/// The panic handler: the location over defmt, then `udf` (a HardFault; under QEMU
+/// the HardFault handler ends QEMU with status 1). Only the location is printed: the
+/// message would pull in `core::fmt`'s formatting machinery (several KiB of flash).
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
+        None => defmt::error!("panic"),
+    }
+    cortex_m::asm::udf()
+}
 
-use rtic_monotonics::systick::prelude::*;
+use core::sync::atomic::{AtomicU32, Ordering};
+use dca_core::console::LogRow;
+use dca_core::controller::Sample;
+use dca_core::frame::MAX_FRAME_LEN;
 
-// The monotonic of the async tasks: SysTick at 1 kHz, one tick is 1 ms. (A literal: the
-// macro uses the rate both as a `u32` argument and as a `u64` const generic.)
-systick_monotonic!(Mono, 1_000);
+use machine::RunConfig;
 
-/// A duration of [`Mono`].
-type Duration = <Mono as rtic_monotonics::TimerQueueBasedMonotonic>::Duration;
+/// Control timer periods since start-up (1 ms each): the log timestamp.
+static UPTIME_MS: AtomicU32 = AtomicU32::new(0);
 
-// defmt log lines carry the monotonic time in ms.
-defmt::timestamp!("{=u32:ms}", Mono::now().as_ticks());
+// defmt log lines carry the uptime in ms.
+defmt::timestamp!("{=u32:ms}", UPTIME_MS.load(Ordering::Relaxed));
+
+/// Deadline of the control task, us after its release (the interrupt that made
+/// the sample available). Checked at the end of every tick; a miss trips the
+/// `overrun` fault and zeroes the drive at once.
+pub const DEADLINE_US: u32 = 500;
+
+/// Capacity of the queue into the console task, events.
+pub const CONSOLE_EVENTS: usize = 48;
+
+/// Something for the console task.
+#[derive(Clone, Copy, Debug)]
+pub enum ConsoleEvent {
+    /// A received byte.
+    Byte(u8),
+    /// Received bytes were lost.
+    Overrun,
+    /// A telemetry row of stream `generation`.
+    Row(u8, LogRow),
+}
+
+/// One encoded HIL frame for the transmitter.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameBytes {
+    /// The bytes, delimiter included.
+    pub buf: [u8; MAX_FRAME_LEN],
+    /// How many are used.
+    pub len: u8,
+}
+
+/// The console transmitter as a text sink: one out-of-line `write_str`, so that the
+/// console's many small writes do not each inline the USART loop.
+pub struct ConsoleOut<'a>(pub &'a mut hardware::ConsoleTx);
+
+impl core::fmt::Write for ConsoleOut<'_> {
+    #[inline(never)]
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        use embedded_hal_nb::serial::Write as _;
+        for b in s.bytes() {
+            // The HAL's USART write cannot fail other than by `WouldBlock`.
+            let _ = nb::block!(self.0.write(b));
+        }
+        Ok(())
+    }
+}
+
+/// The board's local sensor source: ADC scan and encoder.
+#[cfg(not(feature = "qemu"))]
+pub type Sensors = hardware::SensorFrontEnd;
+/// The emulated build's local sensor source.
+#[cfg(feature = "qemu")]
+pub type Sensors = qemu::SimSensors;
+
+/// The local sensor source as the control task sees it.
+pub trait SensorSource {
+    /// The calibrated sample of this tick.
+    fn sample(&mut self, run: &RunConfig) -> Sample;
+    /// The command applied over the next period, m/s.
+    fn applied(&mut self, _v_mps: f32, _dt_s: f32) {}
+    /// The scan's DMA transfer completed; false if it was lost.
+    fn scan_done(&mut self) -> bool {
+        false
+    }
+}
+
+#[cfg(not(feature = "qemu"))]
+impl SensorSource for hardware::SensorFrontEnd {
+    fn sample(&mut self, run: &RunConfig) -> Sample {
+        run.calibrate(&self.read())
+    }
+    fn scan_done(&mut self) -> bool {
+        self.on_transfer_complete()
+    }
+}
+
+#[cfg(feature = "qemu")]
+impl SensorSource for qemu::SimSensors {
+    fn sample(&mut self, _run: &RunConfig) -> Sample {
+        qemu::SimSensors::sample(self)
+    }
+    fn applied(&mut self, v_mps: f32, dt_s: f32) {
+        self.advance(v_mps, dt_s);
+    }
+}
 
 /// The RTIC application.
 #[rtic::app(device = stm32f4xx_hal::pac, dispatchers = [DCMI, HASH_RNG])]
 mod app {
-    use super::{hardware, Duration, Mono};
-    use dca_core::controller::{Controller, ControllerConfig, ControllerKind, Preset, Sample};
-    use rtic_monotonics::systick::prelude::*;
+    use super::{
+        hardware, machine, ConsoleEvent, ConsoleOut, FrameBytes, SensorSource as _, Sensors,
+        CONSOLE_EVENTS, DEADLINE_US, UPTIME_MS,
+    };
+    use core::fmt::Write as _;
+    use dca_core::console::{write_log_header, write_log_row, Console, Edit, LineEditor};
+    use dca_core::frame::{self, CommandFrame, FrameReader, ReadEvent, MAX_FRAME_LEN};
+    use dca_core::settings::{Settings, BOARD_DT_S, IMAGE_LEN};
+    use dca_core::supervisor::Faults;
+    use dca_core::text::Buf;
+    use embedded_hal_nb::serial::{Read as _, Write as _};
+    use hardware::{
+        ConsoleRx, ConsoleTx, HilRx, HilTx, SettingsStore, TickTimer, UsClock, Watchdog,
+    };
+    use machine::{trip, ConsoleState, Ctl, Machine, Release, Source};
+    use rtic_sync::channel::{Receiver, Sender};
+    use rtic_sync::make_channel;
+    use stm32f4xx_hal::pac::Interrupt;
 
-    /// Period of the control task.
-    const CONTROL_PERIOD: Duration = Duration::from_millis(1);
-    /// Period of the heartbeat.
-    const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+    type EventTx = Sender<'static, ConsoleEvent, CONSOLE_EVENTS>;
+    type EventRx = Receiver<'static, ConsoleEvent, CONSOLE_EVENTS>;
 
     /// Resources shared between tasks.
     #[shared]
     struct Shared {
-        /// Control ticks since boot.
-        ticks: u32,
+        /// Supervisor, controller, reference, link and telemetry state.
+        ctl: Ctl,
+        /// The control timer.
+        tick: TickTimer,
+        /// The watchdog.
+        wdg: Watchdog,
+        /// The microsecond clock.
+        clock: UsClock,
+        /// The local sensor source.
+        sensors: Sensors,
     }
 
     /// Resources owned by one task.
     #[local]
     struct Local {
-        /// The control law (designed in `init`), owned by the control task.
-        controller: Controller,
+        drive: hardware::Drive,
+        control_events: EventTx,
+        console_rx: ConsoleRx,
+        rx_events: EventTx,
+        console_tx: ConsoleTx,
+        hil_rx: HilRx,
+        hil_tx: HilTx,
+        store: SettingsStore,
+        console: Console,
     }
 
-    /// Runs once after reset, interrupts disabled: sets up the hardware, starts the
-    /// monotonic, and spawns the tasks.
-    #[init]
+    /// Runs once after reset, interrupts disabled: sets up the hardware, reads
+    /// the stored settings (a missing or corrupt store falls back to the
+    /// defaults and says so on the console), designs the controller on the
+    /// board, and starts the control timer.
+    #[init(local = [buf_a: [u16; 4] = [0; 4], buf_b: [u16; 4] = [0; 4]])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let devices = hardware::setup(cx.core, cx.device);
-        Mono::start(devices.systick, devices.systick_hz);
+        let mut devices = hardware::setup(cx.core, cx.device, (cx.local.buf_a, cx.local.buf_b));
 
-        // Design on the board (f64, slow path): the "paper" MPC-ESO at the 1 kHz tick.
-        let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
-        cfg.base_dt_s = 1.0e-3;
-        let controller = match Controller::new(&cfg) {
-            Ok(c) => c,
-            Err(e) => defmt::panic!("controller design refused: {=str}", e.as_str()),
+        let mut img = [0u8; IMAGE_LEN];
+        let stored = if devices.store.read(&mut img) {
+            Settings::from_image(&img).map_err(|e| e.as_str())
+        } else {
+            Err("no settings stored")
         };
+        let (settings, controller, note) = match stored {
+            Ok((s, c)) => (s, c, None),
+            Err(why) => {
+                let s = Settings::default();
+                match s.validate() {
+                    Ok(c) => (s, c, Some(why)),
+                    Err(e) => defmt::panic!("default settings refused: {=str}", e.as_str()),
+                }
+            }
+        };
+        if let Some(why) = note {
+            defmt::warn!("{=str}: factory settings in use", why);
+        }
         let (n_h, n_c) = controller.periods();
         defmt::info!(
             "dca-firmware {=str}: core clock {=u32} Hz, {=str} ESO every {=u32} ticks, MPC every {=u32}",
             env!("CARGO_PKG_VERSION"),
-            devices.systick_hz,
+            devices.sysclk_hz,
             controller.kind().name(),
             n_h,
             n_c
         );
 
-        // Each task is spawned once, here: spawning cannot fail.
-        control::spawn().unwrap();
-        heartbeat::spawn().unwrap();
+        let mut ctl = Ctl::new(controller, &settings, BOARD_DT_S);
+        if devices.watchdog_reset {
+            trip(&mut ctl, Faults::WATCHDOG);
+        }
+        let (events_tx, events_rx) = make_channel!(ConsoleEvent, CONSOLE_EVENTS);
+        // Spawned once, here: cannot fail.
+        console::spawn(events_rx, note).ok();
+        devices.tick.start();
+        devices.ticker.start();
 
-        (Shared { ticks: 0 }, Local { controller })
+        #[cfg(not(feature = "qemu"))]
+        let sensors = devices.sensors;
+        #[cfg(feature = "qemu")]
+        let sensors = crate::qemu::SimSensors::default();
+        (
+            Shared {
+                ctl,
+                tick: devices.tick,
+                wdg: devices.watchdog,
+                clock: devices.clock,
+                sensors,
+            },
+            Local {
+                drive: devices.drive,
+                control_events: events_tx.clone(),
+                console_rx: devices.console.1,
+                rx_events: events_tx,
+                console_tx: devices.console.0,
+                hil_rx: devices.hil.1,
+                hil_tx: devices.hil.0,
+                store: devices.store,
+                console: Console::new(settings),
+            },
+        )
     }
 
     /// Sleeps until the next interrupt (RTIC's default idle would busy-spin).
@@ -103,44 +283,292 @@ mod app {
 
     /// The control tick, highest priority.
     ///
-    /// Period 1 ms (1 kHz), released by the SysTick monotonic for now (a hardware timer
-    /// later). Deadline: 1 ms after release, i.e. before the next release.
+    /// Released once per sample: on the board by `adc_done` when the DMA has
+    /// moved the ADC scan that TIM3's update (1 kHz) triggered; under QEMU by
+    /// `tick` (SysTick); in HIL mode by `hil_rx` when a complete sample
+    /// frame arrived. Period 1 ms (HIL: one tick per frame).
     ///
-    /// Skeleton: the sensors are not read yet; the controller steps on a resting
-    /// sample so that the whole per-tick path runs on the target.
-    #[task(priority = 2, shared = [ticks], local = [controller])]
-    async fn control(mut cx: control::Context) {
-        let mut next = Mono::now();
-        loop {
-            let out = cx.local.controller.step(&Sample::default(), 0.0);
-            if out.flags.is_error() || !out.v_cmd_mps.is_finite() {
-                defmt::panic!("controller error flags {=u8}", out.flags.0);
+    /// Deadline: [`DEADLINE_US`] = 500 us after the release, measured on TIM2
+    /// at the end of the tick (the drive output and the HIL reply are written
+    /// before that). A miss trips the `overrun` fault and zeroes the drive at
+    /// once; a release while the previous one is still pending trips it too.
+    ///
+    /// Per tick: the calibrated sample (or the frame's), dca-core's
+    /// `ControlLoop::tick` (checks, reference, controller step, gating), the
+    /// drive output (disabled unless armed or running with the local source),
+    /// the HIL reply frame (written here, blocking: at most 20 bytes, about
+    /// 0.22 ms at 921600 baud on the board, within the deadline; a separate
+    /// sender task could still be finishing the previous frame when the host's
+    /// next one arrives), a telemetry row every `decimation` ticks.
+    #[task(binds = EXTI0, priority = 3, shared = [ctl, clock, sensors], local = [drive, control_events, hil_tx])]
+    fn control(cx: control::Context) {
+        let drive = cx.local.drive;
+        let hil_tx = cx.local.hil_tx;
+        let events = cx.local.control_events;
+        (cx.shared.ctl, cx.shared.clock, cx.shared.sensors).lock(|c, clock, sensors| {
+            let Some(release) = c.pending.take() else {
+                return;
+            };
+            let dt_s = c.lp.dt_s() as f32;
+            let (out, sample, reply) = match (release, c.source) {
+                (Release::Local, Source::Local) => {
+                    let s = sensors.sample(&c.run);
+                    (Some(c.lp.tick(&s, None)), s, None)
+                }
+                (Release::Frame(f), Source::Hil) => {
+                    let s = f.sample();
+                    (Some(c.lp.tick(&s, Some(f.ref_m))), s, Some(f.seq))
+                }
+                (Release::LinkError(e), Source::Hil) => {
+                    defmt::warn!("HIL link: {=str}", e.as_str());
+                    trip(c, Faults::HIL_LINK);
+                    (None, *c.lp.last_sample(), Some(c.link.expected()))
+                }
+                // A release of the other source (a mode change raced it).
+                _ => return,
+            };
+            let (v, flags) = out.map_or((0.0, 0), |o| (o.v_cmd_mps, o.flags.0));
+            let enabled = c.lp.supervisor().drive_enabled() && c.source == Source::Local;
+            let (duty, extend) = c.run.drive.duty(v);
+            drive.set(duty, extend, enabled);
+            sensors.applied(if enabled { v } else { 0.0 }, dt_s);
+            c.last_v_mps = v;
+            let sup = *c.lp.supervisor();
+            if let Some(seq) = reply {
+                let msg = CommandFrame {
+                    seq,
+                    v_cmd_mps: v,
+                    state: sup.state() as u8,
+                    faults: sup.faults().0,
+                    flags,
+                };
+                let mut bytes = FrameBytes {
+                    buf: [0; MAX_FRAME_LEN],
+                    len: 0,
+                };
+                match frame::encode(&msg, &mut bytes.buf) {
+                    Ok(n) => {
+                        for &b in &bytes.buf[..n] {
+                            // The HAL's USART write cannot fail other than by `WouldBlock`.
+                            let _ = nb::block!(hil_tx.write(b));
+                        }
+                    }
+                    Err(_) => c.tx_dropped = c.tx_dropped.saturating_add(1),
+                }
             }
-            // Only the `qemu` build reads the count here.
-            let _ticks = cx.shared.ticks.lock(|t| {
-                *t = t.wrapping_add(1);
-                *t
-            });
+            let row = c.telemetry.tick(
+                c.lp.last_ref_m(),
+                v,
+                sample,
+                sup.state() as u8,
+                sup.faults().0,
+            );
+            if let Some(row) = row {
+                if events
+                    .try_send(ConsoleEvent::Row(c.telemetry.generation, row))
+                    .is_err()
+                {
+                    c.telemetry.dropped = c.telemetry.dropped.saturating_add(1);
+                }
+            }
+            c.alive = true;
+            let elapsed = clock.now_us().wrapping_sub(c.release_us);
+            c.max_tick_us = c.max_tick_us.max(elapsed);
+            if elapsed > DEADLINE_US {
+                trip(c, Faults::OVERRUN);
+                drive.set(0.0, true, false);
+            }
+        });
+    }
+
+    /// The ADC scan of the four channels has been moved by DMA (board only;
+    /// the interrupt never fires under QEMU). Period 1 ms; deadline: before
+    /// the next scan ends (1 ms). Releases `control` with the local source.
+    #[task(binds = DMA2_STREAM0, priority = 3, shared = [ctl, clock, sensors])]
+    fn adc_done(cx: adc_done::Context) {
+        (cx.shared.ctl, cx.shared.clock, cx.shared.sensors).lock(|c, clock, sensors| {
+            if !sensors.scan_done() {
+                trip(c, Faults::SENSOR_RANGE);
+            }
+            if c.source == Source::Local {
+                if !c.release(Release::Local, clock.now_us()) {
+                    trip(c, Faults::OVERRUN);
+                }
+                rtic::pend(Interrupt::EXTI0);
+            }
+        });
+    }
+
+    /// The housekeeping tick (SysTick), 1 kHz; deadline 1 ms. Under QEMU it
+    /// releases `control` with the local source. In HIL mode it counts the
+    /// frame timeout while frames are expected. It feeds the watchdog when the
+    /// control task has run since the last feed (or in HIL mode, where ticks
+    /// follow frames).
+    #[task(binds = SysTick, priority = 3, shared = [ctl, clock, wdg])]
+    fn tick(cx: tick::Context) {
+        (cx.shared.ctl, cx.shared.clock, cx.shared.wdg).lock(|c, clock, wdg| {
+            UPTIME_MS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+            let _now = clock.now_us();
             #[cfg(feature = "qemu")]
-            if _ticks == crate::qemu::PASS_TICKS {
-                crate::qemu::pass();
+            if c.source == Source::Local {
+                if !c.release(Release::Local, _now) {
+                    trip(c, Faults::OVERRUN);
+                }
+                rtic::pend(Interrupt::EXTI0);
             }
-            next += CONTROL_PERIOD;
-            Mono::delay_until(next).await;
+            if c.source == Source::Hil && c.lp.supervisor().drive_enabled() {
+                if let Some(e) = c.link.tick(c.run.hil_timeout_ms) {
+                    defmt::warn!("HIL link: {=str}", e.as_str());
+                    trip(c, Faults::HIL_LINK);
+                }
+            } else {
+                c.link.idle();
+            }
+            if c.alive || c.source == Source::Hil {
+                c.alive = false;
+                wdg.feed();
+            }
+        });
+    }
+
+    /// HIL link receiver (USART2 RXNE): collects COBS frames; a complete one is
+    /// checked (CRC, sequence) and releases `control`. Deadline: one byte time
+    /// (about 11 us at 921600 baud). Bytes are ignored unless HIL mode is on.
+    #[task(binds = USART2, priority = 3, shared = [ctl, clock], local = [hil_rx, reader: FrameReader = FrameReader::new()])]
+    fn hil_rx(cx: hil_rx::Context) {
+        let rx = cx.local.hil_rx;
+        let reader = cx.local.reader;
+        (cx.shared.ctl, cx.shared.clock).lock(|c, clock| loop {
+            let release = match rx.read() {
+                Ok(b) => {
+                    if c.source != Source::Hil {
+                        reader.reset();
+                        continue;
+                    }
+                    match reader.push(b) {
+                        Some(ReadEvent::Frame(body)) => match c.link.receive(body) {
+                            Ok(f) => Release::Frame(f),
+                            Err(e) => Release::LinkError(e),
+                        },
+                        Some(ReadEvent::Overflow) => Release::LinkError(c.link.overflow()),
+                        None => continue,
+                    }
+                }
+                Err(nb::Error::WouldBlock) => break,
+                // Overrun, framing or noise error: the frame in progress is bad.
+                Err(nb::Error::Other(_)) => {
+                    reader.reset();
+                    if c.source != Source::Hil {
+                        continue;
+                    }
+                    Release::LinkError(c.link.overflow())
+                }
+            };
+            if !c.release(release, clock.now_us()) {
+                trip(c, Faults::HIL_LINK);
+            }
+            rtic::pend(Interrupt::EXTI0);
+        });
+    }
+
+    /// Console receiver (USART1 RXNE): queues bytes for the console task.
+    /// Deadline: one byte time (87 us at 115200 baud). A full queue drops the
+    /// byte and makes the console refuse the line.
+    #[task(binds = USART1, priority = 2, local = [console_rx, rx_events, lost: bool = false])]
+    fn console_rx(cx: console_rx::Context) {
+        let tx = cx.local.rx_events;
+        loop {
+            match cx.local.console_rx.read() {
+                Ok(b) => {
+                    if *cx.local.lost && tx.try_send(ConsoleEvent::Overrun).is_ok() {
+                        *cx.local.lost = false;
+                    }
+                    if tx.try_send(ConsoleEvent::Byte(b)).is_err() {
+                        *cx.local.lost = true;
+                    }
+                }
+                Err(nb::Error::WouldBlock) => break,
+                Err(nb::Error::Other(_)) => *cx.local.lost = true,
+            }
         }
     }
 
-    /// The heartbeat: logs uptime and the control-tick count.
-    ///
-    /// Period 1 s, lowest priority; deadline: none (best effort).
-    #[task(priority = 1, shared = [ticks])]
-    async fn heartbeat(mut cx: heartbeat::Context) {
-        let mut next = Mono::now();
-        loop {
-            next += HEARTBEAT_PERIOD;
-            Mono::delay_until(next).await;
-            let ticks = cx.shared.ticks.lock(|t| *t);
-            defmt::info!("heartbeat: {=u32} control ticks", ticks);
+    /// The console: line editing, commands (dca-core's `Console`), replies and
+    /// the telemetry stream, all on USART1. Lowest priority, no deadline (best
+    /// effort): writes block on the USART, and the MPC re-design after a
+    /// parameter change runs here.
+    #[task(priority = 1, shared = [ctl, tick, wdg], local = [console_tx, store, console])]
+    async fn console(mut cx: console::Context, mut events: EventRx, note: Option<&'static str>) {
+        let mut out = ConsoleOut(cx.local.console_tx);
+        let tx = &mut out;
+        let mut editor = LineEditor::new();
+        let mut state = ConsoleState {
+            echo: false,
+            telemetry: 0,
+            generation: 0,
+            header_due: false,
+        };
+        let _ = tx.write_str("\r\ndca-firmware ");
+        let _ = tx.write_str(env!("CARGO_PKG_VERSION"));
+        let _ = tx.write_str(" ready; type 'help'\r\n");
+        if let Some(why) = note {
+            let _ = tx.write_str("note: ");
+            let _ = tx.write_str(why);
+            let _ = tx.write_str(": factory settings in use\r\n");
+        }
+        while let Ok(ev) = events.recv().await {
+            match ev {
+                ConsoleEvent::Byte(b) => match editor.push(b) {
+                    Edit::None => {}
+                    Edit::Echo(c) => {
+                        if state.echo {
+                            let _ = tx.write_char(c as char);
+                        }
+                    }
+                    Edit::Erase => {
+                        if state.echo {
+                            let _ = tx.write_str("\x08 \x08");
+                        }
+                    }
+                    Edit::Bad(e) => {
+                        if state.echo {
+                            let _ = tx.write_str("\r\n");
+                        }
+                        cx.local.console.reject(e, tx);
+                    }
+                    Edit::Line(line) => {
+                        if state.echo {
+                            let _ = tx.write_str("\r\n");
+                        }
+                        #[cfg(feature = "qemu")]
+                        if line == "quit" {
+                            let _ = tx.write_str("ok\r\n");
+                            crate::qemu::exit(0);
+                        }
+                        let mut machine = Machine {
+                            ctl: &mut cx.shared.ctl,
+                            tick: &mut cx.shared.tick,
+                            wdg: &mut cx.shared.wdg,
+                            store: cx.local.store,
+                            console: &mut state,
+                        };
+                        cx.local.console.execute(line, &mut machine, tx);
+                        if state.header_due {
+                            state.header_due = false;
+                            let kind = cx.local.console.settings().controller.kind;
+                            write_log_header(tx, kind.name());
+                        }
+                    }
+                },
+                ConsoleEvent::Overrun => editor.overrun(),
+                ConsoleEvent::Row(generation, row) => {
+                    if state.telemetry != 0 && generation == state.generation {
+                        let mut line: Buf<128> = Buf::new();
+                        write_log_row(&mut line, &row);
+                        let _ = tx.write_str(line.as_str());
+                    }
+                }
+            }
         }
     }
 }

@@ -1,0 +1,326 @@
+//! The console (dca_core::console) against a model of the board built from the
+//! core's own control loop.
+
+use dca_core::console::{
+    write_log_header, write_log_row, Console, Edit, LineEditor, LogRow, Status, Target, MAX_LINE,
+};
+use dca_core::controller::{Controller, ControllerKind, Sample};
+use dca_core::settings::Settings;
+use dca_core::supervisor::{ControlLoop, Refused, State};
+use dca_core::text::Buf;
+
+struct Model {
+    lp: ControlLoop,
+    settings: Settings,
+    flash: Option<Vec<u8>>,
+    telemetry: Option<u32>,
+    hil: bool,
+    echo: bool,
+    applied: u32,
+}
+
+impl Model {
+    fn new() -> Self {
+        let s = Settings::default();
+        let mut lp = ControlLoop::new(s.validate().unwrap(), s.limits, 1e-3);
+        lp.tick(&Sample::default(), None);
+        Self {
+            lp,
+            settings: s,
+            flash: None,
+            telemetry: None,
+            hil: false,
+            echo: false,
+            applied: 0,
+        }
+    }
+}
+
+impl Target for Model {
+    fn status(&mut self) -> Status {
+        Status {
+            state: self.lp.supervisor().state() as u8,
+            faults: self.lp.supervisor().faults().0,
+            sample: *self.lp.last_sample(),
+            ref_m: self.lp.reference_now(),
+            ticks: self.lp.ticks(),
+            hil: self.hil,
+            telemetry: self.telemetry.unwrap_or(0),
+            ..Status::default()
+        }
+    }
+    fn apply(&mut self, s: &Settings, c: &Controller) -> Result<(), Refused> {
+        self.lp.reconfigure(*c, s.limits)?;
+        self.settings = *s;
+        self.applied += 1;
+        Ok(())
+    }
+    fn arm(&mut self) -> Result<(), Refused> {
+        self.lp.arm()
+    }
+    fn disarm(&mut self) {
+        self.lp.disarm()
+    }
+    fn goto(&mut self, x_m: f32) -> Result<(), Refused> {
+        self.lp.goto(x_m)
+    }
+    fn sine(&mut self, a: f32, f: f32) -> Result<(), Refused> {
+        self.lp.sine(a, f)
+    }
+    fn stop(&mut self) -> Result<(), Refused> {
+        self.lp.stop()
+    }
+    fn clear(&mut self) -> Result<(), Refused> {
+        self.lp.supervisor_mut().clear()
+    }
+    fn store(&mut self, image: &[u8]) -> Result<(), &'static str> {
+        self.flash = Some(image.to_vec());
+        Ok(())
+    }
+    fn load(&mut self, buf: &mut [u8]) -> bool {
+        match &self.flash {
+            Some(f) if f.len() == buf.len() => {
+                buf.copy_from_slice(f);
+                true
+            }
+            _ => false,
+        }
+    }
+    fn telemetry(&mut self, d: Option<u32>) {
+        self.telemetry = d;
+    }
+    fn hil(&mut self, on: bool) -> Result<(), Refused> {
+        self.lp.supervisor().require_idle()?;
+        self.hil = on;
+        Ok(())
+    }
+    fn echo(&mut self, on: bool) {
+        self.echo = on;
+    }
+}
+
+fn say(c: &mut Console, m: &mut Model, line: &str) -> String {
+    let mut out = String::new();
+    c.execute(line, m, &mut out);
+    out
+}
+
+fn last_line(reply: &str) -> &str {
+    assert!(reply.ends_with("\r\n"), "{reply:?}");
+    reply.trim_end().rsplit("\r\n").next().unwrap()
+}
+
+fn ok(c: &mut Console, m: &mut Model, line: &str) -> String {
+    let r = say(c, m, line);
+    assert_eq!(last_line(&r), "ok", "{line:?} -> {r:?}");
+    r
+}
+
+fn err(c: &mut Console, m: &mut Model, line: &str) -> String {
+    let r = say(c, m, line);
+    assert!(last_line(&r).starts_with("error: "), "{line:?} -> {r:?}");
+    assert_eq!(r.matches("\r\n").count(), 1, "an error is one line: {r:?}");
+    r
+}
+
+#[test]
+fn every_reply_ends_with_ok_or_error() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    let help = ok(&mut c, &mut m, "help");
+    assert!(help.lines().count() > 10);
+    let st = ok(&mut c, &mut m, "status");
+    assert!(
+        st.starts_with("state=idle faults=none controller=mpc-eso"),
+        "{st}"
+    );
+    assert_eq!(
+        ok(&mut c, &mut m, "get eso.beta1"),
+        "eso.beta1 = 30\r\nok\r\n"
+    );
+    assert_eq!(ok(&mut c, &mut m, "get pid.kp"), "pid.kp = 2.7\r\nok\r\n");
+    assert_eq!(
+        ok(&mut c, &mut m, "get cal.encoder.gain"),
+        "cal.encoder.gain = 2e-7\r\nok\r\n"
+    );
+    let all = ok(&mut c, &mut m, "get");
+    assert_eq!(all.lines().count(), dca_core::settings::PARAMS.len() + 1);
+    assert_eq!(ok(&mut c, &mut m, "controller"), "mpc-eso\r\nok\r\n");
+    assert!(ok(&mut c, &mut m, "fault").starts_with("faults=none\r\nlink good=0"));
+}
+
+#[test]
+fn malformed_unknown_and_refused_lines_change_nothing() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    let before = *c.settings();
+    for line in [
+        "frobnicate",
+        "set",
+        "set eso.beta1",
+        "set eso.beta1 abc",
+        "set eso.beta1 1e999",
+        "set eso.beta1 -5",
+        "set eso.beta1 5 6",
+        "set no.such 1",
+        "set mpc_eso.np 8.5",
+        "set mpc.np 1",
+        "get no.such",
+        "get a b",
+        "goto",
+        "goto 500",
+        "goto -20",
+        "goto x",
+        "sine 10",
+        "sine 0 1",
+        "sine 10 0",
+        "sine 10 50",
+        "sine 80 1",
+        "controller lqr",
+        "controller pid extra",
+        "preset slow",
+        "telemetry",
+        "telemetry maybe",
+        "telemetry on 5",
+        "telemetry on 100000",
+        "telemetry on 1.5",
+        "telemetry off 10",
+        "hil",
+        "hil maybe",
+        "arm now",
+        "load",
+        "clear",
+        "stop",
+        "echo",
+    ] {
+        err(&mut c, &mut m, line);
+        assert_eq!(*c.settings(), before, "{line}");
+        assert_eq!(m.applied, 0, "{line}");
+        assert_eq!(m.telemetry, None, "{line}");
+        assert!(!m.hil, "{line}");
+        assert_eq!(m.lp.supervisor().state(), State::Idle, "{line}");
+    }
+}
+
+#[test]
+fn settings_apply_only_when_idle_and_survive_store_and_load() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    ok(&mut c, &mut m, "set mpc_eso.rw 300");
+    assert_eq!(m.settings.controller.mpc_eso.rw, 300.0);
+    assert_eq!(m.applied, 1);
+    ok(&mut c, &mut m, "controller pid");
+    assert_eq!(m.lp.controller().kind(), ControllerKind::Pid);
+    ok(&mut c, &mut m, "store");
+    ok(&mut c, &mut m, "defaults");
+    assert_eq!(m.settings.controller.kind, ControllerKind::MpcEso);
+    ok(&mut c, &mut m, "load");
+    assert_eq!(c.settings().controller.kind, ControllerKind::Pid);
+    assert_eq!(c.settings().controller.mpc_eso.rw, 300.0);
+    // Under control nothing may change.
+    ok(&mut c, &mut m, "arm");
+    let applied = m.applied;
+    let r = err(&mut c, &mut m, "set pid.kp 3");
+    assert_eq!(r, "error: disarm first\r\n");
+    err(&mut c, &mut m, "preset fast");
+    err(&mut c, &mut m, "hil on");
+    assert_eq!(m.applied, applied);
+    assert_eq!(c.settings().controller.pid.kp, 2.7);
+    ok(&mut c, &mut m, "disarm");
+    // A corrupt store is refused and leaves the settings.
+    m.flash.as_mut().unwrap()[40] ^= 1;
+    let r = err(&mut c, &mut m, "load");
+    assert!(r.contains("checksum"), "{r}");
+    assert_eq!(c.settings().controller.kind, ControllerKind::Pid);
+}
+
+#[test]
+fn motion_commands_follow_the_supervisor() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    assert_eq!(err(&mut c, &mut m, "goto 10"), "error: not armed\r\n");
+    ok(&mut c, &mut m, "arm");
+    ok(&mut c, &mut m, "goto 10");
+    assert_eq!(m.lp.reference_now(), 0.01);
+    ok(&mut c, &mut m, "stop");
+    ok(&mut c, &mut m, "sine 20 0.5");
+    assert_eq!(m.lp.supervisor().state(), State::Running);
+    err(&mut c, &mut m, "sine 50 0.5"); // 10 mm + 2 x 50 mm leaves the stroke
+    ok(&mut c, &mut m, "telemetry on 10");
+    assert_eq!(m.telemetry, Some(10));
+    ok(&mut c, &mut m, "telemetry off");
+    assert_eq!(m.telemetry, None);
+    ok(&mut c, &mut m, "disarm");
+    ok(&mut c, &mut m, "hil on");
+    assert!(m.hil);
+    ok(&mut c, &mut m, "echo on");
+    assert!(m.echo);
+}
+
+#[test]
+fn line_editor_handles_typing_garbage_and_overlong_lines() {
+    let mut e = LineEditor::new();
+    let mut feed = |bytes: &[u8]| -> Vec<String> {
+        let mut lines = Vec::new();
+        for &b in bytes {
+            match e.push(b) {
+                Edit::Line(s) => lines.push(s.to_string()),
+                Edit::Bad(err) => lines.push(format!("!{}", err.as_str())),
+                _ => {}
+            }
+        }
+        lines
+    };
+    assert_eq!(feed(b"stat\x08\x08atus\r\n"), vec!["status"]);
+    assert_eq!(feed(b"\r\n\r\n"), Vec::<String>::new());
+    assert_eq!(feed(b"ge\x01t\n"), vec!["!invalid character in line"]);
+    assert_eq!(
+        feed("g\u{e9}t\n".as_bytes()),
+        vec!["!invalid character in line"]
+    );
+    let long = vec![b'a'; MAX_LINE + 1];
+    let mut bytes = long.clone();
+    bytes.push(b'\n');
+    assert_eq!(feed(&bytes), vec!["!line too long"]);
+    let mut exact = vec![b'a'; MAX_LINE];
+    exact.push(b'\r');
+    assert_eq!(feed(&exact), vec!["a".repeat(MAX_LINE)]);
+    assert_eq!(feed(b"help\n"), vec!["help"]);
+}
+
+#[test]
+fn telemetry_rows_form_a_run_log() {
+    let mut h = String::new();
+    write_log_header(&mut h, "mpc-eso");
+    assert!(h.starts_with("# dca-log v1\r\n# controller=mpc-eso\r\n"));
+    let header = h.lines().find(|l| !l.starts_with('#')).unwrap();
+    for col in [
+        "t_s", "ref_m", "vcmd_mps", "xi_m", "xo_m", "p1_pa", "p2_pa", "ft_n",
+    ] {
+        assert!(header.split(',').any(|c| c == col), "{col}");
+    }
+    let mut b: Buf<160> = Buf::new();
+    let row = LogRow {
+        n: 1234,
+        step_ms: 10,
+        ref_m: 0.05,
+        v_cmd_mps: -0.012,
+        sample: Sample {
+            xo_m: 0.0499,
+            xi_m: 0.0415,
+            p1_pa: 640_127.4,
+            p2_pa: 1.0e6,
+            ft_n: -3.25,
+        },
+        state: 2,
+        faults: 0,
+    };
+    write_log_row(&mut b, &row);
+    let line = b.as_str();
+    assert!(
+        line.starts_with("12.340,0.0500000,-0.0120000,0.04150000,0.04990000,640127.4,"),
+        "{line}"
+    );
+    assert_eq!(line.split(',').count(), header.split(',').count());
+    assert!(!b.overflowed());
+}

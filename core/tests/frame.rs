@@ -1,0 +1,156 @@
+//! HIL frames (dca_core::frame): round trips, corruption, sequence and timeout.
+
+use dca_core::frame::{
+    decode, encode, CommandFrame, FrameError, FrameReader, LinkError, LinkMonitor, ReadEvent,
+    SampleFrame, MAX_FRAME_LEN,
+};
+
+fn sample(seq: u32) -> SampleFrame {
+    SampleFrame {
+        seq,
+        ref_m: 0.05,
+        xo_m: 0.012_345_678,
+        xi_m: -1.0e-9,
+        p1_pa: 640_127.4,
+        p2_pa: 1.0e6,
+        ft_n: -0.0,
+    }
+}
+
+/// Encode and split into the body (without the delimiter).
+fn wire(f: &SampleFrame) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let n = encode(f, &mut out).unwrap();
+    assert_eq!(out[n - 1], 0, "delimiter");
+    assert!(!out[..n - 1].contains(&0), "COBS removes every zero");
+    out[..n - 1].to_vec()
+}
+
+#[test]
+fn frames_round_trip_bit_for_bit() {
+    let weird = SampleFrame {
+        seq: u32::MAX,
+        ref_m: f32::from_bits(0x7fc0_1234),
+        xo_m: f32::MIN_POSITIVE / 2.0,
+        xi_m: f32::INFINITY,
+        p1_pa: f32::MAX,
+        p2_pa: -0.0,
+        ft_n: 1.0e-38,
+    };
+    for f in [sample(0), sample(12345), weird] {
+        let mut body = wire(&f);
+        let back: SampleFrame = decode(&mut body).unwrap();
+        assert_eq!(back.seq, f.seq);
+        let bits =
+            |s: &SampleFrame| [s.ref_m, s.xo_m, s.xi_m, s.p1_pa, s.p2_pa, s.ft_n].map(f32::to_bits);
+        assert_eq!(bits(&back), bits(&f));
+    }
+    let c = CommandFrame {
+        seq: 7,
+        v_cmd_mps: -0.0123,
+        state: 2,
+        faults: 0x41,
+        flags: 8,
+    };
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let n = encode(&c, &mut out).unwrap();
+    let back: CommandFrame = decode(&mut out[..n - 1]).unwrap();
+    assert_eq!(back, c);
+}
+
+#[test]
+fn every_single_bit_flip_is_detected() {
+    let good = wire(&sample(3));
+    for i in 0..good.len() {
+        for bit in 0..8 {
+            let mut body = good.clone();
+            body[i] ^= 1 << bit;
+            if body[i] == 0 {
+                // A zero would have split the frame at the receiver: a COBS or
+                // length failure of the shorter frame, also refused.
+                body.truncate(i);
+            }
+            let r: Result<SampleFrame, _> = decode(&mut body);
+            assert!(r.is_err(), "flip byte {i} bit {bit} accepted");
+        }
+    }
+}
+
+#[test]
+fn truncated_and_padded_frames_are_refused() {
+    let good = wire(&sample(3));
+    for n in 0..good.len() {
+        let mut body = good[..n].to_vec();
+        assert!(decode::<SampleFrame>(&mut body).is_err(), "prefix {n}");
+    }
+    // A valid command frame is not a sample frame.
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let n = encode(&CommandFrame::default(), &mut out).unwrap();
+    assert!(decode::<SampleFrame>(&mut out[..n - 1]).is_err());
+    let mut long = vec![1u8; MAX_FRAME_LEN + 1];
+    assert_eq!(decode::<SampleFrame>(&mut long), Err(FrameError::Length));
+}
+
+#[test]
+fn reader_splits_a_stream_and_resynchronises_after_garbage() {
+    let mut stream = vec![0x55, 0x66]; // a torn frame before the first delimiter
+    stream.push(0);
+    for k in 0..3 {
+        stream.extend(wire(&sample(k)));
+        stream.push(0);
+    }
+    stream.extend(vec![9u8; MAX_FRAME_LEN + 5]);
+    stream.push(0);
+    stream.push(0);
+    let mut r = FrameReader::new();
+    let mut mon = LinkMonitor::new();
+    let mut got = Vec::new();
+    for b in stream {
+        match r.push(b) {
+            Some(ReadEvent::Frame(body)) => got.push(mon.receive(body)),
+            Some(ReadEvent::Overflow) => got.push(Err(mon.overflow())),
+            None => {}
+        }
+    }
+    assert!(matches!(got[0], Err(LinkError::Corrupt(_))));
+    assert_eq!(got[1].unwrap().seq, 0);
+    assert_eq!(got[2].unwrap().seq, 1);
+    assert_eq!(got[3].unwrap().seq, 2);
+    assert_eq!(got[4], Err(LinkError::Corrupt(FrameError::Length)));
+    assert_eq!(got.len(), 5);
+    let c = mon.counters();
+    assert_eq!((c.good, c.corrupt, c.lost, c.late), (3, 2, 0, 0));
+}
+
+#[test]
+fn monitor_counts_gaps_repeats_and_timeouts() {
+    let mut mon = LinkMonitor::new();
+    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().seq, 0);
+    assert_eq!(
+        mon.receive(&mut wire(&sample(2))),
+        Err(LinkError::Lost {
+            expected: 1,
+            got: 2
+        })
+    );
+    // A repeat of an old frame is not accepted either.
+    assert!(mon.receive(&mut wire(&sample(0))).is_err());
+    assert_eq!(mon.expected(), 1);
+    mon.restart();
+    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().seq, 0);
+    // Timeout: fires once at the limit, restarts with a frame; 0 disables.
+    for _ in 0..4 {
+        assert_eq!(mon.tick(5), None);
+    }
+    assert_eq!(mon.tick(5), Some(LinkError::Late));
+    assert_eq!(mon.tick(5), None);
+    assert_eq!(mon.receive(&mut wire(&sample(1))).unwrap().seq, 1);
+    for _ in 0..4 {
+        assert_eq!(mon.tick(5), None);
+    }
+    for _ in 0..100 {
+        assert_eq!(mon.tick(0), None);
+    }
+    let c = mon.counters();
+    assert_eq!((c.good, c.lost, c.late), (3, 2, 1));
+}
