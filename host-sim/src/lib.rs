@@ -8,6 +8,7 @@ pub mod config;
 pub mod effects;
 pub mod gains;
 pub mod gap;
+pub mod grnn;
 pub mod hil;
 pub mod metrics;
 pub mod paper;

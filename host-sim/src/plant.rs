@@ -11,8 +11,22 @@
 //! friction, ...) can later be composed around them without touching the nominal
 //! equations. Constants that do not depend on the state are computed once in
 //! [`Plant::new`].
+//!
+//! The GRNN hose variants ([`HoseModel::Grnn`], [`HoseModel::GrnnMemory`]) make the
+//! pressure equation implicit in dP/dt; it is solved per line and per RK stage by
+//! safeguarded Newton ([`crate::grnn::hose::GrnnHose::solve_dp_paps`]), warm-started
+//! at the line's previous solution. That solver state lives in the plant behind
+//! relaxed atomics, so `derivative` and `step` keep `&self` and `Plant` stays
+//! `Send + Sync`; [`Plant::initial_state`] resets it, which keeps runs reproducible.
+//! The memory variant's filter states are ordinary plant states (the hose-volume
+//! slots). Run the GRNN variants at dt = 2e-4 s (plant.md section 4).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 use dca_core::params::PlantParams;
+
+use crate::grnn::hose::{GrnnHose, GrnnHoseKind};
 
 /// Number of plant states (plant.md section 2).
 pub const N_STATES: usize = 11;
@@ -35,13 +49,17 @@ pub struct State {
     pub p1_pa: f64,
     /// Line-2 pressure P2 (gauge), Pa.
     pub p2_pa: f64,
-    /// Hose-1 fast relaxation volume Vf1, m^3.
+    /// Hose-1 fast relaxation volume Vf1, m^3 (hose model
+    /// [`HoseModel::GrnnMemory`]: the first filtered line-1 pressure, Pa).
     pub vf1_m3: f64,
-    /// Hose-1 slow creep volume Vs1, m^3.
+    /// Hose-1 slow creep volume Vs1, m^3 ([`HoseModel::GrnnMemory`]: the second
+    /// filtered line-1 pressure, Pa).
     pub vs1_m3: f64,
-    /// Hose-2 fast relaxation volume Vf2, m^3.
+    /// Hose-2 fast relaxation volume Vf2, m^3 ([`HoseModel::GrnnMemory`]: the
+    /// first filtered line-2 pressure, Pa).
     pub vf2_m3: f64,
-    /// Hose-2 slow creep volume Vs2, m^3.
+    /// Hose-2 slow creep volume Vs2, m^3 ([`HoseModel::GrnnMemory`]: the second
+    /// filtered line-2 pressure, Pa).
     pub vs2_m3: f64,
     /// Accumulator gas volume Vg, m^3.
     pub vg_m3: f64,
@@ -127,9 +145,10 @@ impl From<State> for [f64; N_STATES] {
 
 /// Hose wall model of both lines (plant.md section 4, "Variants").
 ///
-/// A `Grnn` variant (section 4, implicit pressure equation solved by Newton per line
-/// and per RK stage) is planned; it is not implemented yet. Because it warm-starts at
-/// the previous solution it will need solver state next to the plant state.
+/// The two GRNN variants name the *kind* of hose; the fitted network itself lives
+/// in the [`Plant`] (shared through an `Arc`): [`Plant::new`] uses the shipped
+/// default networks ([`GrnnHose::shipped_static`], [`GrnnHose::shipped_memory`]),
+/// [`Plant::with_grnn_hose`] any other. This keeps `HoseModel` a `Copy` name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum HoseModel {
     /// The nominal pressure-stiffening viscoelastic hose (`hose_model = "nonlinear"`).
@@ -141,26 +160,115 @@ pub enum HoseModel {
     Linear,
     /// Rigid hose: dVf = dVs = 0 and dP = Q beta_e / V (oil compressibility only).
     Rigid,
+    /// The paper's GRNN hose (`grnn`): wall rate g(P, dP/dt) from a static GRNN, the
+    /// pressure equation implicit in dP/dt and solved per line and per RK stage by
+    /// safeguarded Newton ([`GrnnHose::solve_dp_paps`]). The hose volume states are
+    /// unused (held at 0). Run it at dt = 2e-4 s (plant.md section 4).
+    Grnn,
+    /// GRNN hose with memory (`grnn-memory`): g(P, dP/dt, P - P_f1, P - P_f2) with
+    /// P_fk = lowpass(P, tau_k) (see [`crate::grnn::memory`]). The filter states are
+    /// plant states: the slots `vf*` hold P_f1 and `vs*` hold P_f2 (Pa), with
+    /// dP_fk/dt = (P - P_fk) / tau_k. Same implicit solve as [`HoseModel::Grnn`].
+    GrnnMemory,
 }
 
 impl HoseModel {
-    /// The command-line / configuration name (`nonlinear`, `linear`, `rigid`).
+    /// Every hose model, in documentation order.
+    pub const ALL: [Self; 5] = [
+        Self::Nonlinear,
+        Self::Linear,
+        Self::Rigid,
+        Self::Grnn,
+        Self::GrnnMemory,
+    ];
+
+    /// The command-line / configuration name (`nonlinear`, `linear`, `rigid`,
+    /// `grnn`, `grnn-memory`).
     pub fn name(self) -> &'static str {
         match self {
             Self::Nonlinear => "nonlinear",
             Self::Linear => "linear",
             Self::Rigid => "rigid",
+            Self::Grnn => "grnn",
+            Self::GrnnMemory => "grnn-memory",
         }
     }
 
-    /// The hose model with the given name, `None` if unknown (or not implemented yet).
+    /// The hose model with the given name, `None` if unknown.
     pub fn by_name(name: &str) -> Option<Self> {
-        match name {
-            "nonlinear" => Some(Self::Nonlinear),
-            "linear" => Some(Self::Linear),
-            "rigid" => Some(Self::Rigid),
-            _ => None,
+        Self::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// True for the GRNN variants (implicit pressure equation).
+    pub fn is_grnn(self) -> bool {
+        matches!(self, Self::Grnn | Self::GrnnMemory)
+    }
+}
+
+/// The GRNN hose of a plant and its solver state: the last Newton solution of
+/// each line (the warm start) and iteration counters.
+///
+/// The warm start is interior-mutable so that [`Plant::derivative`] and
+/// [`Plant::step`] keep `&self` for every hose model. It is held in relaxed
+/// atomics (not a `Cell`), so a `Plant` stays `Sync` and can be shared by
+/// threads; each clone has its own copy. It only chooses where Newton starts:
+/// results differ by less than the Newton tolerance (1e-3 Pa/s in dP/dt) with
+/// another start. Runs are bit-reproducible because [`Plant::initial_state`]
+/// resets it (as every run starts there), provided one plant instance is not
+/// stepped by two threads at once (give each thread its own clone).
+struct GrnnLines {
+    hose: Arc<GrnnHose>,
+    /// Last solution per line, f64 bits.
+    warm: [AtomicU64; 2],
+    /// Solves and iterations since the last reset.
+    solves: AtomicU64,
+    iterations: AtomicU64,
+}
+
+impl GrnnLines {
+    fn new(hose: Arc<GrnnHose>) -> Self {
+        Self {
+            hose,
+            warm: [AtomicU64::new(0), AtomicU64::new(0)],
+            solves: AtomicU64::new(0),
+            iterations: AtomicU64::new(0),
         }
+    }
+
+    fn reset(&self) {
+        for w in &self.warm {
+            w.store(0f64.to_bits(), Ordering::Relaxed);
+        }
+        self.solves.store(0, Ordering::Relaxed);
+        self.iterations.store(0, Ordering::Relaxed);
+    }
+}
+
+impl Clone for GrnnLines {
+    fn clone(&self) -> Self {
+        let c = Self::new(self.hose.clone());
+        for (d, s) in c.warm.iter().zip(&self.warm) {
+            d.store(s.load(Ordering::Relaxed), Ordering::Relaxed);
+        }
+        c
+    }
+}
+
+impl PartialEq for GrnnLines {
+    /// Equal if the networks are (the solver state is not compared).
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.hose, &other.hose) || *self.hose == *other.hose
+    }
+}
+
+impl std::fmt::Debug for GrnnLines {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GrnnLines")
+            .field("kind", &self.hose.kind())
+            .field("description", &self.hose.description())
+            .field("sigma", &self.hose.sigma())
+            .field("n_samples", &self.hose.n_samples())
+            .finish_non_exhaustive()
     }
 }
 
@@ -219,6 +327,10 @@ pub struct Plant {
     ce_lin_m3pp: f64,
     cf_lin_m3pp: f64,
     cs_lin_m3pp: f64,
+    /// GRNN hose models only: the network and the Newton warm start.
+    grnn: Option<GrnnLines>,
+    /// GRNN memory hose only: 1 / tau_k of its filters, 1/s.
+    inv_tau_mem_ps: [f64; 2],
 }
 
 impl Default for Plant {
@@ -229,9 +341,35 @@ impl Default for Plant {
 
 impl Plant {
     /// A plant with the given parameters and hose model; precomputes the constants.
+    /// The GRNN hose models use the shipped default networks
+    /// ([`GrnnHose::shipped_static`], [`GrnnHose::shipped_memory`]; built once per
+    /// process on first use).
     pub fn new(params: PlantParams, hose_model: HoseModel) -> Self {
+        let hose = match hose_model {
+            HoseModel::Grnn => Some(GrnnHose::shipped_static()),
+            HoseModel::GrnnMemory => Some(GrnnHose::shipped_memory()),
+            _ => None,
+        };
+        Self::build(params, hose_model, hose)
+    }
+
+    /// A plant whose hoses are the given GRNN hose (hose model [`HoseModel::Grnn`]
+    /// for a static network, [`HoseModel::GrnnMemory`] for a memory network).
+    pub fn with_grnn_hose(params: PlantParams, hose: Arc<GrnnHose>) -> Self {
+        let model = match hose.kind() {
+            GrnnHoseKind::Static => HoseModel::Grnn,
+            GrnnHoseKind::Memory => HoseModel::GrnnMemory,
+        };
+        Self::build(params, model, Some(hose))
+    }
+
+    fn build(params: PlantParams, hose_model: HoseModel, hose: Option<Arc<GrnnHose>>) -> Self {
         let h = &params.hose;
         let f_lin = h.stiffening(params.p_nom_pa);
+        let inv_tau_mem_ps = match &hose {
+            Some(g) if g.kind() == GrnnHoseKind::Memory => g.taus_s().map(|t| 1.0 / t),
+            _ => [0.0; 2],
+        };
         Self {
             params,
             hose_model,
@@ -245,7 +383,25 @@ impl Plant {
             ce_lin_m3pp: h.ce0_m3pp * f_lin,
             cf_lin_m3pp: h.cf0_m3pp * f_lin,
             cs_lin_m3pp: h.cs0_m3pp * f_lin,
+            grnn: hose.map(GrnnLines::new),
+            inv_tau_mem_ps,
         }
+    }
+
+    /// The GRNN hose of a GRNN hose model, `None` otherwise.
+    pub fn grnn_hose(&self) -> Option<&Arc<GrnnHose>> {
+        self.grnn.as_ref().map(|g| &g.hose)
+    }
+
+    /// GRNN hose models: (implicit solves, Newton iterations) since the last
+    /// [`Plant::initial_state`]; `None` for the other hose models.
+    pub fn grnn_solver_stats(&self) -> Option<(u64, u64)> {
+        self.grnn.as_ref().map(|g| {
+            (
+                g.solves.load(Ordering::Relaxed),
+                g.iterations.load(Ordering::Relaxed),
+            )
+        })
     }
 
     /// The nominal plant: [`PlantParams::NOMINAL`] with the nonlinear hose.
@@ -287,7 +443,8 @@ impl Plant {
 
     /// Equilibrium hose volumes (Vf, Vs) at pressure `p_pa` for the active hose model:
     /// (Cf0 L(P), Cs0 L(P)) (nonlinear), (Cf0 f(P_lin) P, Cs0 f(P_lin) P) (linear),
-    /// (0, 0) (rigid), m^3. Shared by [`Plant::initial_state`] and the rates so that the
+    /// (0, 0) (rigid, grnn), m^3; (P, P) for grnn-memory, whose slots hold filtered
+    /// pressures (Pa). Shared by [`Plant::initial_state`] and the rates so that the
     /// rest state is an equilibrium to the last bit.
     #[inline]
     fn hose_targets_m3(&self, p_pa: f64) -> (f64, f64) {
@@ -298,7 +455,8 @@ impl Plant {
                 (h.cf0_m3pp * l, h.cs0_m3pp * l)
             }
             HoseModel::Linear => (self.cf_lin_m3pp * p_pa, self.cs_lin_m3pp * p_pa),
-            HoseModel::Rigid => (0.0, 0.0),
+            HoseModel::Rigid | HoseModel::Grnn => (0.0, 0.0),
+            HoseModel::GrnnMemory => (p_pa, p_pa),
         }
     }
 
@@ -306,8 +464,15 @@ impl Plant {
     /// equilibrium). The hose volumes are the equilibrium volumes of the active hose
     /// model (section 4.1 exactly for the nonlinear hose; f(P_lin) P in place of L(P)
     /// for the linear hose; 0 for the rigid hose, whose hose volumes never change), so
-    /// the rest state is an equilibrium of every hose model.
+    /// the rest state is an equilibrium of every hose model except the GRNN ones
+    /// (a GRNN's wall rate at dP/dt = 0 is not exactly 0). For the GRNN hose models
+    /// this also resets the Newton warm start and the solver counters (see
+    /// [`Plant::grnn_solver_stats`]), so that every run starting here is
+    /// reproducible.
     pub fn initial_state(&self, ft0_n: f64) -> State {
+        if let Some(g) = &self.grnn {
+            g.reset();
+        }
         let p = &self.params;
         let p2 = p.p_acc0_pa;
         let p1 = (p.aa2_m2 * p2 + ft0_n) / p.aa1_m2;
@@ -375,8 +540,8 @@ impl Plant {
     #[inline]
     pub fn pressure_rates(&self, x: &State, q1_m3ps: f64, q2_m3ps: f64) -> PressureRates {
         let (v1, v2) = self.line_volumes(x.xi_m, x.xo_m);
-        let l1 = self.line_rates(x.p1_pa, x.vf1_m3, x.vs1_m3, v1, q1_m3ps);
-        let l2 = self.line_rates(x.p2_pa, x.vf2_m3, x.vs2_m3, v2, q2_m3ps);
+        let l1 = self.line_rates(0, x.p1_pa, x.vf1_m3, x.vs1_m3, v1, q1_m3ps);
+        let l2 = self.line_rates(1, x.p2_pa, x.vf2_m3, x.vs2_m3, v2, q2_m3ps);
         PressureRates {
             dp1_paps: l1.dp_paps,
             dp2_paps: l2.dp_paps,
@@ -387,16 +552,27 @@ impl Plant {
         }
     }
 
-    /// Rates of one line with pressure `p`, hose volumes (`vf`, `vs`), oil volume `v`
-    /// and net inflow `q`.
+    /// Rates of one line (`line` 0 or 1) with pressure `p`, hose volumes (`vf`, `vs`),
+    /// oil volume `v` and net inflow `q`.
     #[inline]
-    fn line_rates(&self, p_pa: f64, vf_m3: f64, vs_m3: f64, v_m3: f64, q_m3ps: f64) -> LineRates {
+    fn line_rates(
+        &self,
+        line: usize,
+        p_pa: f64,
+        vf_m3: f64,
+        vs_m3: f64,
+        v_m3: f64,
+        q_m3ps: f64,
+    ) -> LineRates {
+        if let Some(g) = &self.grnn {
+            return self.grnn_line_rates(g, line, p_pa, vf_m3, vs_m3, v_m3, q_m3ps);
+        }
         let h = &self.params.hose;
         // Wall compliance of the instantaneous element, m^3/Pa.
         let ce_m3pp = match self.hose_model {
             HoseModel::Nonlinear => h.ce0_m3pp * h.stiffening(p_pa),
             HoseModel::Linear => self.ce_lin_m3pp,
-            HoseModel::Rigid => {
+            HoseModel::Rigid | HoseModel::Grnn | HoseModel::GrnnMemory => {
                 return LineRates {
                     dp_paps: q_m3ps * self.params.beta_e_pa / v_m3,
                     dvf_m3ps: 0.0,
@@ -410,6 +586,50 @@ impl Plant {
         let dp = (q_m3ps - dvf - dvs) / (v_m3 * self.inv_beta_e_ppa + ce_m3pp);
         LineRates {
             dp_paps: dp,
+            dvf_m3ps: dvf,
+            dvs_m3ps: dvs,
+        }
+    }
+
+    /// Rates of one line with a GRNN hose: the implicit pressure equation solved by
+    /// [`GrnnHose::solve_dp_paps`], warm-started at the line's previous solution;
+    /// for the memory hose the slots (`vf`, `vs`) are the filtered pressures (Pa).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn grnn_line_rates(
+        &self,
+        g: &GrnnLines,
+        line: usize,
+        p_pa: f64,
+        vf: f64,
+        vs: f64,
+        v_m3: f64,
+        q_m3ps: f64,
+    ) -> LineRates {
+        let memory = g.hose.kind() == GrnnHoseKind::Memory;
+        let mem_mpa = if memory {
+            [(p_pa - vf) * 1e-6, (p_pa - vs) * 1e-6]
+        } else {
+            [0.0; 2]
+        };
+        let warm = f64::from_bits(g.warm[line].load(Ordering::Relaxed));
+        let s = g
+            .hose
+            .solve_dp_paps(p_pa, mem_mpa, q_m3ps, v_m3 * self.inv_beta_e_ppa, warm);
+        g.warm[line].store(s.dp_paps.to_bits(), Ordering::Relaxed);
+        g.solves.fetch_add(1, Ordering::Relaxed);
+        g.iterations
+            .fetch_add(u64::from(s.iterations), Ordering::Relaxed);
+        let (dvf, dvs) = if memory {
+            (
+                (p_pa - vf) * self.inv_tau_mem_ps[0],
+                (p_pa - vs) * self.inv_tau_mem_ps[1],
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        LineRates {
+            dp_paps: s.dp_paps,
             dvf_m3ps: dvf,
             dvs_m3ps: dvs,
         }
@@ -493,10 +713,15 @@ mod tests {
 
     #[test]
     fn hose_model_names() {
-        for m in [HoseModel::Nonlinear, HoseModel::Linear, HoseModel::Rigid] {
+        for m in HoseModel::ALL {
             assert_eq!(HoseModel::by_name(m.name()), Some(m));
         }
-        assert_eq!(HoseModel::by_name("grnn"), None);
+        assert_eq!(HoseModel::by_name("grnn"), Some(HoseModel::Grnn));
+        assert_eq!(
+            HoseModel::by_name("grnn-memory"),
+            Some(HoseModel::GrnnMemory)
+        );
+        assert_eq!(HoseModel::by_name("GRNN"), None);
         assert_eq!(HoseModel::default(), HoseModel::Nonlinear);
     }
 
