@@ -20,6 +20,72 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The gap diagnosis's validation suite: synthetic runs with hidden
+    /// effects; prints the confusion table.
+    GapSuite {
+        /// Also write the table to this Markdown file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Hardware- or processor-in-the-loop: the plant here, the control tick on a
+    /// board (--port) or in the emulated firmware (--qemu), in lockstep.
+    Hil {
+        /// Serial device of the board's HIL link (e.g. /dev/ttyACM0).
+        #[arg(long, conflicts_with = "qemu")]
+        port: Option<String>,
+        /// Serial device of the board's console: the run sets the board up itself.
+        #[arg(long, requires = "port")]
+        console: Option<String>,
+        /// Start the emulated firmware (QEMU netduinoplus2) instead of a board.
+        #[arg(long)]
+        qemu: bool,
+        /// The emulated firmware's ELF (default: built with `cargo fw-qemu` if missing).
+        #[arg(long, requires = "qemu")]
+        elf: Option<PathBuf>,
+        /// Scenario: a nominal name or a TOML file.
+        #[arg(long)]
+        scenario: String,
+        /// Controller: mpc-eso, mpc, pid or fuzzy-pid.
+        #[arg(long)]
+        controller: Option<String>,
+        /// Configuration: paper, fast or a TOML file.
+        #[arg(long)]
+        config: Option<String>,
+        /// Hose model of the plant.
+        #[arg(long)]
+        hose: Option<String>,
+        /// Sensor mode: ideal or realistic.
+        #[arg(long)]
+        sensors: Option<String>,
+        /// Noise seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// An unmodelled effect of the simulated plant (repeatable).
+        #[arg(long = "effect")]
+        effects: Vec<String>,
+        /// Also run the same loop in software and check the drive commands are
+        /// bit-identical.
+        #[arg(long)]
+        compare: bool,
+        /// Where to write the run log (CSV).
+        #[arg(long)]
+        log: PathBuf,
+    },
+    /// Sim-to-real gap diagnosis of recorded run logs (interfaces.md section 2).
+    Gap {
+        /// A run log used to localise the gap and fit the candidate effects (repeatable).
+        #[arg(long = "fit", required = true)]
+        fit: Vec<PathBuf>,
+        /// A held-out run log, only used to evaluate what was fitted (repeatable).
+        #[arg(long = "check", required = true)]
+        check: Vec<PathBuf>,
+        /// Where to write the JSON report.
+        #[arg(long)]
+        json: PathBuf,
+        /// Directory for the Markdown report with plots.
+        #[arg(long)]
+        report: Option<PathBuf>,
+    },
     /// Benchmarks of the simulator (real-time factors, derivative cost, batch
     /// speed-up), printed as a table.
     Bench {
@@ -143,8 +209,141 @@ fn parse_seeds(s: &str) -> Result<Vec<u64>, String> {
     }
 }
 
+/// The emulated firmware's ELF: `elf`, or the default path, built if missing.
+fn qemu_elf(elf: Option<PathBuf>) -> Result<PathBuf, String> {
+    if let Some(e) = elf {
+        return Ok(e);
+    }
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let path = root.join("target/qemu/thumbv7em-none-eabihf/firmware/dca-firmware");
+    if !path.exists() {
+        eprintln!("building the emulated firmware (cargo fw-qemu) ...");
+        let status =
+            std::process::Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+                .current_dir(&root)
+                .args(["fw-qemu"])
+                .status()
+                .map_err(|e| format!("cargo fw-qemu: {e}"))?;
+        if !status.success() {
+            return Err(format!("cargo fw-qemu failed ({status}); install the target with `rustup target add thumbv7em-none-eabihf`"));
+        }
+    }
+    Ok(path)
+}
+
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
+        Command::GapSuite { out } => {
+            use host_sim::gap::validation::{cases, markdown, run_suite};
+            let t0 = std::time::Instant::now();
+            let res = run_suite(&cases(), &Default::default(), true);
+            let table = markdown(&res);
+            println!("{table}");
+            eprintln!(
+                "{} cases in {:.1} s on {} threads",
+                res.len(),
+                t0.elapsed().as_secs_f64(),
+                rayon::current_num_threads()
+            );
+            if let Some(p) = out {
+                std::fs::write(&p, table).map_err(|e| format!("{}: {e}", p.display()))?;
+            }
+            Ok(())
+        }
+        Command::Hil {
+            port,
+            console,
+            qemu,
+            elf,
+            scenario,
+            controller,
+            config,
+            hose,
+            sensors,
+            seed,
+            effects,
+            compare,
+            log,
+        } => {
+            use host_sim::hil;
+            let spec = host_sim::run::resolve(&RunRequest {
+                scenario,
+                controller,
+                config,
+                hose,
+                sensors,
+                seed,
+                dt_s: None,
+                effects,
+            })?;
+            let trace = match (port, qemu) {
+                (Some(port), false) => {
+                    let opts = hil::SerialOptions {
+                        console,
+                        ..Default::default()
+                    };
+                    hil::run_hil_serial(&spec, &port, &opts).map_err(|e| e.to_string())?
+                }
+                (None, true) => {
+                    let elf = qemu_elf(elf)?;
+                    hil::run_hil_qemu(&spec, &elf, &hil::QemuOptions::default())
+                        .map_err(|e| e.to_string())?
+                }
+                _ => {
+                    return Err(
+                        "give --port DEVICE (a board) or --qemu (the emulated firmware)".into(),
+                    )
+                }
+            };
+            let mut out =
+                std::fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
+            trace
+                .write_log(&mut out)
+                .map_err(|e| format!("{}: {e}", log.display()))?;
+            eprintln!(
+                "{} control ticks in the loop -> {}",
+                trace.rows.len(),
+                log.display()
+            );
+            if compare {
+                let sw = hil::run_software(&spec).map_err(|e| e.to_string())?;
+                match trace.first_difference(&sw) {
+                    None => eprintln!(
+                        "drive commands bit-identical to the software loop ({} ticks)",
+                        sw.rows.len()
+                    ),
+                    Some(i) => {
+                        return Err(format!(
+                            "drive commands differ from the software loop first at tick {i}"
+                        ))
+                    }
+                }
+            }
+            Ok(())
+        }
+        Command::Gap {
+            fit,
+            check,
+            json,
+            report,
+        } => {
+            let opts = host_sim::gap::diagnose::Options {
+                progress: true,
+                ..Default::default()
+            };
+            let d = host_sim::gap::run_gap(&fit, &check, &json, report.as_deref(), &opts)?;
+            eprintln!(
+                "verdict: {} (fit {:.2} -> {:.2}, check {:.2} -> {:.2}, {:.1} s) -> {}",
+                d.verdict,
+                d.fit.before,
+                d.fit.after,
+                d.check.before,
+                d.check.after,
+                d.elapsed_s,
+                json.display()
+            );
+            Ok(())
+        }
         Command::Bench { reps } => {
             print!("{}", host_sim::bench::table(&host_sim::bench::bench(reps)));
             Ok(())

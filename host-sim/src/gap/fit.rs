@@ -2,8 +2,9 @@
 //!
 //! Each parameter is mapped to u in [0, 1] (logarithmically between its
 //! bounds when they span more than a decade, with a lower bound of 0 replaced
-//! by 1e-4 of the upper bound), scanned coarsely one parameter at a time,
-//! then refined by Nelder-Mead with the simplex clamped to the unit box.
+//! by 1e-4 of the upper bound), scanned on a coarse full grid (up to three
+//! parameters), then refined by Nelder-Mead with the simplex clamped to the
+//! unit box.
 //! Evaluations are few (each is a replay of whole runs), so the budget is
 //! explicit.
 
@@ -86,20 +87,32 @@ pub fn minimize(
     };
     let mut best_u: Vec<f64> = x0.iter().zip(bounds).map(|(x, b)| b.u_of(*x)).collect();
     let mut best = eval(&best_u, &mut evals);
-    // Coarse scan, one parameter at a time around the current best.
-    for k in 0..d {
-        for j in 0..scan {
-            let mut u = best_u.clone();
-            u[k] = (j as f64 + 0.5) / scan as f64;
-            let v = eval(&u, &mut evals);
-            if v < best {
-                best = v;
-                best_u = u;
-            }
+    // Coarse scan: a full grid of `scan` points per parameter (capped at 27
+    // points in all), so that valleys running across parameters are found.
+    let per = match d {
+        0 => 0,
+        1 => scan,
+        2 => scan.min(5),
+        _ => 3,
+    };
+    let total = if d <= 3 { per.pow(d as u32) } else { 0 };
+    for idx in 0..total {
+        let mut rest = idx;
+        let u: Vec<f64> = (0..d)
+            .map(|_| {
+                let j = rest % per;
+                rest /= per;
+                (j as f64 + 0.5) / per as f64
+            })
+            .collect();
+        let v = eval(&u, &mut evals);
+        if v < best {
+            best = v;
+            best_u = u;
         }
     }
     // Nelder-Mead in the unit box.
-    let step = 0.5 / scan.max(2) as f64;
+    let step = 0.5 / per.max(2) as f64;
     let mut simplex: Vec<(Vec<f64>, f64)> = vec![(best_u.clone(), best)];
     for k in 0..d {
         let mut u = best_u.clone();

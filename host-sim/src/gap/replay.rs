@@ -2,7 +2,8 @@
 //!
 //! Inputs are the recorded drive command `vcmd_mps` (through the servo model,
 //! so the servo and the ball screw are part of what is tested) and the
-//! recorded load `ft_n`, each held over one log interval (the firmware holds
+//! recorded load `ft_n` (its noise reduced by a running median), each held
+//! over one log interval (the firmware holds
 //! its command for a control period; the simulator's commands change only at
 //! controller ticks, which fall on the log grid). The model starts at rest at
 //! the first measured positions and load (averaged over the first 20 ms when
@@ -35,6 +36,22 @@ fn median_head(v: &[f64], n: usize) -> f64 {
 
 /// Replay `log` on `rig` with plant steps of at most `max_dt_s`.
 pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
+    let load = filtered_load(log);
+    replay_with_load(log, &load, rig, max_dt_s)
+}
+
+/// The recorded load with its sensor noise reduced: a running median over
+/// 11 samples (keeps the steps of the load, removes the noise that would
+/// otherwise drive the replayed pressures).
+pub fn filtered_load(log: &RunLog) -> Vec<f64> {
+    let n = log.len();
+    (0..n)
+        .map(|i| super::stats::median(&log.ft_n[i.saturating_sub(5)..(i + 6).min(n)]))
+        .collect()
+}
+
+/// Replay with a given load signal (see [`filtered_load`]).
+pub fn replay_with_load(log: &RunLog, load: &[f64], rig: &Rig, max_dt_s: f64) -> Replay {
     let n = log.len();
     let log_dt = log.dt_s();
     let sub = ((log_dt / max_dt_s).ceil() as usize).max(1);
@@ -46,7 +63,7 @@ pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
         .iter()
         .all(|x| (x - log.xi_m[0]).abs() < 1e-6);
     let start = |v: &[f64]| if at_rest { median_head(v, head) } else { v[0] };
-    let mut s = rig.initial_state(start(&log.ft_n));
+    let mut s = rig.initial_state(start(load));
     s.x.xi_m = start(&log.xi_m);
     s.x.xo_m = start(&log.xo_m);
     s.ext.xp_m = s.x.xi_m;
@@ -59,7 +76,7 @@ pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
         c.reserve(n);
     }
     let mut diverged = false;
-    for i in 0..n {
+    for (&ft, &vcmd) in load.iter().zip(&log.vcmd_mps) {
         if diverged {
             for c in ch.iter_mut() {
                 c.push(f64::NAN);
@@ -72,13 +89,13 @@ pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
             xo_m: x.xo_m,
             p1_pa: x.p1_pa,
             p2_pa: x.p2_pa,
-            ft_n: log.ft_n[i],
+            ft_n: ft,
         });
         for (c, v) in ch.iter_mut().zip([r.xo_m, r.xi_m, r.p1_pa, r.p2_pa]) {
             c.push(v);
         }
         for _ in 0..sub {
-            rig.step(&mut s, log.vcmd_mps[i], log.ft_n[i], h);
+            rig.step(&mut s, vcmd, ft, h);
         }
         diverged = !s.is_finite();
     }

@@ -1,0 +1,186 @@
+//! The human report of a diagnosis: Markdown with plots.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::diagnose::{Details, Diagnosis, Run, BLOCK};
+use super::replay::{measured, Replay, CHANNELS};
+use crate::plot::{self, Panel, Series};
+
+/// Display unit and scale of each channel (residual plots).
+const UNITS: [(&str, f64); 4] = [("um", 1e6), ("um", 1e6), ("kPa", 1e-3), ("kPa", 1e-3)];
+
+fn residual(run: &Run, sim: &Replay, c: usize) -> Vec<(f64, f64)> {
+    let m = measured(&run.log)[c];
+    let (_, k) = UNITS[c];
+    // 10 ms block means, as the gap measures them.
+    m.chunks(BLOCK)
+        .zip(sim.ch[c].chunks(BLOCK))
+        .enumerate()
+        .map(|(i, (a, b))| {
+            let r = a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64;
+            (run.log.t_s[0] + (i * BLOCK) as f64 * run.log.dt_s(), r * k)
+        })
+        .collect()
+}
+
+fn residual_figure(
+    path: &Path,
+    runs: &[&Run],
+    before: &[Replay],
+    after: &[Replay],
+    verdict: &str,
+) -> Result<(), String> {
+    let mut panels = Vec::new();
+    for (i, run) in runs.iter().enumerate() {
+        for c in 0..4 {
+            let (u, _) = UNITS[c];
+            let mut p = Panel::new(
+                format!("{}: {} residual (10 ms means)", run.name, CHANNELS[c]),
+                "t [s]",
+                format!("[{u}]"),
+            )
+            .with(Series::line("nominal model", residual(run, &before[i], c)));
+            if let Some(a) = after.get(i) {
+                p = p.with(Series::line(format!("with {verdict}"), residual(run, a, c)));
+            }
+            panels.push(p);
+        }
+    }
+    plot::save(path, &panels, 1000, 220)
+}
+
+fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), String> {
+    let fit: Vec<(f64, f64)> = d
+        .candidates
+        .iter()
+        .enumerate()
+        .map(|(i, c)| ((i + 1) as f64, c.fit_shrink.max(-1.0) * 100.0))
+        .collect();
+    let check: Vec<(f64, f64)> = d
+        .candidates
+        .iter()
+        .enumerate()
+        .map(|(i, c)| ((i + 1) as f64, c.check_shrink.max(-1.0) * 100.0))
+        .collect();
+    let panel = Panel::new(
+        "candidate effects, ranked (x = rank in the table)",
+        "rank",
+        "gap shrink [%]",
+    )
+    .with(Series::line("fit runs", fit))
+    .with(Series::line("check runs (held out)", check));
+    plot::save(path, &[panel], 900, 360)
+}
+
+/// Write `report.md` and its figures into `dir`.
+pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let runs: Vec<&Run> = details.fit.iter().chain(details.check.iter()).collect();
+    residual_figure(
+        &dir.join("residuals.png"),
+        &runs,
+        &details.before,
+        &details.after,
+        &d.verdict,
+    )?;
+    candidates_figure(&dir.join("candidates.png"), d)?;
+    let mut md = String::new();
+    let _ = writeln!(md, "# Sim-to-real gap diagnosis\n");
+    let _ = writeln!(md, "**Verdict: `{}`**. {}\n", d.verdict, d.reason);
+    let _ = writeln!(md, "Gap: {}.\n", d.gap_metric);
+    let _ = writeln!(md, "| runs | before | after | shrink |\n|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "| fit ({}) | {:.2} | {:.2} | {:.0} % |",
+        details.fit.len(),
+        d.fit.before,
+        d.fit.after,
+        d.fit.shrink * 100.0
+    );
+    let _ = writeln!(
+        md,
+        "| check, held out ({}) | {:.2} | {:.2} | {:.0} % |\n",
+        details.check.len(),
+        d.check.before,
+        d.check.after,
+        d.check.shrink * 100.0
+    );
+    if let Some(s) = &d.second_effect {
+        let _ = writeln!(
+            md,
+            "Second effect on top: `{}` shrinks the remaining gap by {:.0} % (fit) and {:.0} % (check): {}.\n",
+            s.effect,
+            s.fit_extra_shrink * 100.0,
+            s.check_extra_shrink * 100.0,
+            if s.significant { "significant" } else { "not significant" }
+        );
+    }
+    let _ = writeln!(md, "## Candidates (fitted on the fit runs only)\n");
+    let _ = writeln!(
+        md,
+        "| rank | effect | fitted parameters | fit shrink | check shrink |\n|---|---|---|---|---|"
+    );
+    for (i, c) in d.candidates.iter().enumerate() {
+        let params: Vec<String> = c
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.3e}"))
+            .collect();
+        let _ = writeln!(
+            md,
+            "| {} | `{}` | {} | {:.0} % | {:.0} % |",
+            i + 1,
+            c.effect,
+            params.join(", "),
+            c.fit_shrink * 100.0,
+            c.check_shrink * 100.0
+        );
+    }
+    let _ = writeln!(md, "\n![ranking](candidates.png)\n");
+    let _ = writeln!(md, "## Where the gap lies (nominal model)\n");
+    let _ = writeln!(md, "| run | channel | from [s] | to [s] | segment | share of the run's gap |\n|---|---|---|---|---|---|");
+    for w in &d.where_ {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.2} | {:.2} | {} | {:.0} % |",
+            w.run,
+            w.channel,
+            w.t0_s,
+            w.t1_s,
+            w.label,
+            w.share * 100.0
+        );
+    }
+    let _ = writeln!(md, "\n## Residual tests (nominal model, 99 %)\n");
+    let _ = writeln!(
+        md,
+        "| run | channel | gap | noise | RMS residual | white | independent of the command | band shares {} |\n|---|---|---|---|---|---|---|---|",
+        d.bands_hz.iter().map(|b| format!("{}-{} Hz", b[0], b[1])).collect::<Vec<_>>().join(" / ")
+    );
+    for c in &d.channels {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.2} | {:.3e} | {:.3e} | {} | {} | {} |",
+            c.run,
+            c.channel,
+            c.gap,
+            c.noise,
+            c.rms_residual,
+            if c.white { "yes" } else { "no" },
+            if c.independent_of_input { "yes" } else { "no" },
+            c.band_shares
+                .iter()
+                .map(|x| format!("{:.0} %", x * 100.0))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n## Residuals before and after\n\n![residuals](residuals.png)\n"
+    );
+    let _ = writeln!(md, "Diagnosis took {:.1} s.", d.elapsed_s);
+    let path = dir.join("report.md");
+    std::fs::write(&path, md).map_err(|e| format!("{}: {e}", path.display()))
+}

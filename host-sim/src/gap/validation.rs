@@ -1,0 +1,335 @@
+//! Validation suite of the gap diagnosis: synthetic rig runs with hidden
+//! effects (each effect of plant.md section 12 at two magnitudes, some pairs,
+//! and clean runs), realistic sensors with noise, fit and check runs from
+//! different scenarios and controllers. The diagnosis sees only the logs;
+//! the truth stays here and scores the verdicts.
+//!
+//! * fit run (10 s, MPC-ESO): moves 0 -> 40 -> 10 -> 30 mm (a reversal),
+//!   load 0 -> 800 N at 6 s -> 300 N at 8 s;
+//! * check run (10 s, PI): 0.25 Hz sine reference 5-45 mm under a
+//!   300 + 250 sin(2 pi 0.4 t) N load.
+//!
+//! A verdict is right when it names the hidden effect (either one for a
+//! pair), or `none` for a clean run.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use super::diagnose::{diagnose, Diagnosis, Options, Run};
+use crate::effects::{EffectKind, Effects};
+use crate::plant::Plant;
+use crate::runlog::RunLog;
+use crate::scenario::{Command, Piecewise, Scenario, Signal};
+use crate::sensors::SensorMode;
+use crate::sim::{run, RunSpec};
+
+/// One case of the suite.
+#[derive(Clone, Debug)]
+pub struct Case {
+    /// Display name, e.g. `leakage (large)`.
+    pub name: String,
+    /// The hidden effects (empty: clean).
+    pub truth: Vec<EffectKind>,
+    /// Their parameters.
+    pub effects: Effects,
+}
+
+fn case(name: &str, list: &[(EffectKind, &[f64])]) -> Case {
+    let mut e = Effects::NONE;
+    for (k, v) in list {
+        e.set(*k, Some(v));
+    }
+    Case {
+        name: name.to_string(),
+        truth: list.iter().map(|(k, _)| *k).collect(),
+        effects: e,
+    }
+}
+
+/// The cases: clean runs, every effect small and large, three pairs.
+pub fn cases() -> Vec<Case> {
+    use EffectKind::*;
+    vec![
+        case("clean (seed a)", &[]),
+        case("clean (seed b)", &[]),
+        case("leakage (small)", &[(Leakage, &[3e-14])]),
+        case("leakage (large)", &[(Leakage, &[1.5e-13])]),
+        case("friction (small)", &[(Friction, &[20.0, 30.0, 2e-3])]),
+        case("friction (large)", &[(Friction, &[60.0, 90.0, 2e-3])]),
+        case("backlash (small)", &[(Backlash, &[60e-6])]),
+        case("backlash (large)", &[(Backlash, &[200e-6])]),
+        case("air (small)", &[(Air, &[0.003])]),
+        case("air (large)", &[(Air, &[0.015])]),
+        case("sensor_delay (small)", &[(SensorDelay, &[3e-3, 1e-3])]),
+        case("sensor_delay (large)", &[(SensorDelay, &[8e-3, 4e-3])]),
+        case("motor_limit (small)", &[(MotorLimit, &[5.0, 4000.0])]),
+        case("motor_limit (large)", &[(MotorLimit, &[1.5, 1500.0])]),
+        case(
+            "hose_hysteresis (small)",
+            &[(HoseHysteresis, &[1e-13, 5e4])],
+        ),
+        case(
+            "hose_hysteresis (large)",
+            &[(HoseHysteresis, &[4e-13, 1e5])],
+        ),
+        case(
+            "accumulator_thermal (small)",
+            &[(AccumulatorThermal, &[15.0])],
+        ),
+        case(
+            "accumulator_thermal (large)",
+            &[(AccumulatorThermal, &[3.0])],
+        ),
+        case(
+            "leakage + friction",
+            &[(Leakage, &[1e-13]), (Friction, &[40.0, 60.0, 2e-3])],
+        ),
+        case(
+            "air + sensor_delay",
+            &[(Air, &[0.008]), (SensorDelay, &[5e-3, 2e-3])],
+        ),
+        case(
+            "backlash + accumulator_thermal",
+            &[(Backlash, &[150e-6]), (AccumulatorThermal, &[4.0])],
+        ),
+    ]
+}
+
+/// The fit scenario: moves with a reversal, then load steps.
+pub fn fit_scenario() -> Scenario {
+    let steps =
+        |t: Vec<f64>, v: &[f64]| Signal::Piecewise(Piecewise::constants(t, v).expect("valid"));
+    Scenario::new(
+        "fit-moves-loads",
+        10.0,
+        Command::Reference(steps(vec![2.5, 4.5], &[0.040, 0.010, 0.030])),
+        steps(vec![6.0, 8.0], &[0.0, 800.0, 300.0]),
+    )
+}
+
+/// The check scenario: sine tracking under a sine load.
+pub fn check_scenario() -> Scenario {
+    Scenario::new(
+        "check-sine-sineload",
+        10.0,
+        Command::Reference(Signal::Cosine {
+            bias: 0.025,
+            amplitude: -0.020,
+            omega_radps: std::f64::consts::PI / 2.0,
+            t0_s: 0.0,
+        }),
+        Signal::Sine {
+            bias: 300.0,
+            amplitude: 250.0,
+            omega_radps: 2.0 * std::f64::consts::PI * 0.4,
+            t0_s: 0.0,
+        },
+    )
+}
+
+/// A synthetic rig log: `scenario` under `kind` with `effects`, realistic
+/// sensors seeded with `seed`, as the diagnosis would read it from a file.
+pub fn rig_log(scenario: Scenario, kind: ControllerKind, effects: &Effects, seed: u64) -> RunLog {
+    let spec = RunSpec {
+        scenario,
+        controller: ControllerConfig::preset(Preset::Paper, kind),
+        plant: Plant::nominal(),
+        effects: *effects,
+        sensors: SensorMode::Realistic,
+        seed,
+        dt_s: 1e-4,
+    };
+    let trace = run(&spec).expect("valid run");
+    let mut text = Vec::new();
+    RunLog::from_trace(&trace, &[])
+        .write_to(&mut text)
+        .expect("in memory");
+    RunLog::parse(
+        std::str::from_utf8(&text).expect("utf-8"),
+        spec.scenario.name(),
+    )
+    .expect("own log reads back")
+}
+
+/// The result of one case.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The case.
+    pub case: Case,
+    /// The diagnosis.
+    pub diagnosis: Diagnosis,
+}
+
+impl Outcome {
+    /// The verdict names the hidden effect (or `none` for a clean run).
+    pub fn right(&self) -> bool {
+        if self.case.truth.is_empty() {
+            self.diagnosis.verdict == "none"
+        } else {
+            self.case
+                .truth
+                .iter()
+                .any(|k| k.name() == self.diagnosis.verdict)
+        }
+    }
+
+    /// The truth as a label.
+    pub fn truth_label(&self) -> String {
+        if self.case.truth.is_empty() {
+            "none".into()
+        } else {
+            self.case
+                .truth
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>()
+                .join("+")
+        }
+    }
+}
+
+/// Run the suite (cases in parallel).
+pub fn run_suite(cases: &[Case], opts: &Options, progress: bool) -> Vec<Outcome> {
+    let bar = if progress {
+        ProgressBar::new(cases.len() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("[{elapsed_precise}] {bar:30} {pos}/{len} cases {msg}")
+            .expect("valid template"),
+    );
+    let quiet = Options {
+        progress: false,
+        ..opts.clone()
+    };
+    let out = cases
+        .par_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let seed = 100 + 2 * i as u64;
+            let fit = vec![Run::new(
+                "fit.csv".into(),
+                rig_log(fit_scenario(), ControllerKind::MpcEso, &c.effects, seed),
+            )];
+            let check = vec![Run::new(
+                "check.csv".into(),
+                rig_log(check_scenario(), ControllerKind::Pid, &c.effects, seed + 1),
+            )];
+            let (diagnosis, _) = diagnose(fit, check, &Plant::nominal(), &quiet);
+            bar.inc(1);
+            bar.set_message(c.name.clone());
+            Outcome {
+                case: c.clone(),
+                diagnosis,
+            }
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
+}
+
+/// Summary numbers of a suite run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// Right verdicts among single-effect cases, and their number.
+    pub single: (usize, usize),
+    /// Right verdicts among clean cases, and their number.
+    pub clean: (usize, usize),
+    /// Right verdicts among pairs, and their number.
+    pub pairs: (usize, usize),
+    /// Median check-run shrink over right verdicts naming an effect.
+    pub median_check_shrink: f64,
+    /// Smallest check-run shrink over right verdicts naming an effect.
+    pub min_check_shrink: f64,
+}
+
+/// Score the outcomes.
+pub fn summary(out: &[Outcome]) -> Summary {
+    let count = |f: &dyn Fn(&Outcome) -> bool| {
+        let all: Vec<&Outcome> = out.iter().filter(|o| f(o)).collect();
+        (all.iter().filter(|o| o.right()).count(), all.len())
+    };
+    let mut shrinks: Vec<f64> = out
+        .iter()
+        .filter(|o| o.right() && !o.case.truth.is_empty())
+        .map(|o| o.diagnosis.check.shrink)
+        .collect();
+    shrinks.sort_by(|a, b| a.total_cmp(b));
+    Summary {
+        single: count(&|o| o.case.truth.len() == 1),
+        clean: count(&|o| o.case.truth.is_empty()),
+        pairs: count(&|o| o.case.truth.len() == 2),
+        median_check_shrink: super::stats::median(&shrinks),
+        min_check_shrink: shrinks.first().copied().unwrap_or(f64::NAN),
+    }
+}
+
+/// The confusion table (truth by verdict) and the per-case results, Markdown.
+pub fn markdown(out: &[Outcome]) -> String {
+    let mut verdicts: Vec<String> = EffectKind::ALL
+        .iter()
+        .map(|k| k.name().to_string())
+        .collect();
+    verdicts.push("none".into());
+    verdicts.push("unexplained".into());
+    let mut table: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    for o in out {
+        *table
+            .entry(o.truth_label())
+            .or_default()
+            .entry(o.diagnosis.verdict.clone())
+            .or_default() += 1;
+    }
+    let mut s = String::new();
+    let _ = writeln!(s, "| truth \\ verdict | {} |", verdicts.join(" | "));
+    let _ = writeln!(s, "|---|{}", "---|".repeat(verdicts.len()));
+    for (truth, row) in &table {
+        let cells: Vec<String> = verdicts
+            .iter()
+            .map(|v| {
+                row.get(v)
+                    .map(|n| n.to_string())
+                    .unwrap_or_else(|| ".".into())
+            })
+            .collect();
+        let _ = writeln!(s, "| {truth} | {} |", cells.join(" | "));
+    }
+    let _ = writeln!(s, "\n| case | verdict | right | fit before -> after | check before -> after | check shrink | time [s] |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for o in out {
+        let d = &o.diagnosis;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.2} -> {:.2} | {:.2} -> {:.2} | {:.0} % | {:.1} |",
+            o.case.name,
+            d.verdict,
+            if o.right() { "yes" } else { "**no**" },
+            d.fit.before,
+            d.fit.after,
+            d.check.before,
+            d.check.after,
+            d.check.shrink * 100.0,
+            d.elapsed_s
+        );
+    }
+    let m = summary(out);
+    let _ = writeln!(
+        s,
+        "\nSingle effects right: {}/{}; clean runs `none`: {}/{}; pairs naming one of the two: {}/{}; \
+         check-run shrink on right verdicts: median {:.0} %, lowest {:.0} %.",
+        m.single.0,
+        m.single.1,
+        m.clean.0,
+        m.clean.1,
+        m.pairs.0,
+        m.pairs.1,
+        m.median_check_shrink * 100.0,
+        m.min_check_shrink * 100.0
+    );
+    s
+}

@@ -1,0 +1,33 @@
+//! The validation suite of the gap diagnosis (issue targets): right verdict
+//! for at least 90 % of the single-effect cases and `none` for clean runs;
+//! at least 50 % shrink of the gap on the held-out check runs wherever the
+//! verdict is right. The table is written to target/gap-validation.md.
+
+use host_sim::gap::diagnose::Options;
+use host_sim::gap::validation::{cases, markdown, run_suite, summary};
+
+#[test]
+fn gap_validation_suite() {
+    let out = run_suite(&cases(), &Options::default(), false);
+    let table = markdown(&out);
+    println!("{table}");
+    let target =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/gap-validation.md");
+    std::fs::write(&target, &table).ok();
+    let s = summary(&out);
+    assert_eq!(s.clean.0, s.clean.1, "clean runs must give `none`");
+    assert!(
+        s.single.0 as f64 >= 0.9 * s.single.1 as f64,
+        "single effects right: {}/{}",
+        s.single.0,
+        s.single.1
+    );
+    for o in out.iter().filter(|o| o.right() && o.case.truth.len() == 1) {
+        assert!(
+            o.diagnosis.check.shrink >= 0.5,
+            "{}: check shrink {:.2}",
+            o.case.name,
+            o.diagnosis.check.shrink
+        );
+    }
+}
