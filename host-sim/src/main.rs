@@ -20,6 +20,27 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The hose models of plant.md section 9: GRNN, RBF and BP side by side
+    /// (the paper's Fig. 9), the GRNN with memory on the dynamic data, and the
+    /// closed-loop deviation after the 800 N step with each hose.
+    Hose {
+        /// Quasi-static hose data (default: the shipped sample data).
+        #[arg(long)]
+        quasistatic: Option<PathBuf>,
+        /// Dynamic hose data (default: the shipped sample data).
+        #[arg(long)]
+        dynamic: Option<PathBuf>,
+        /// Report directory.
+        #[arg(long, default_value = "out/hose")]
+        out: PathBuf,
+        /// Also the leave-one-run-out comparison of the static and memory GRNNs
+        /// (about 1.5 minutes).
+        #[arg(long)]
+        memory: bool,
+        /// Also the closed-loop comparison of the hose models (MPC-ESO, stepload).
+        #[arg(long)]
+        closed_loop: bool,
+    },
     /// The gap diagnosis's validation suite: synthetic runs with hidden
     /// effects; prints the confusion table.
     GapSuite {
@@ -233,6 +254,51 @@ fn qemu_elf(elf: Option<PathBuf>) -> Result<PathBuf, String> {
 
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
+        Command::Hose {
+            quasistatic,
+            dynamic,
+            out,
+            memory,
+            closed_loop,
+        } => {
+            use host_sim::grnn::{closed_loop as cl, data, memory as mem, paper};
+            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+            let qs = match &quasistatic {
+                Some(p) => data::QuasiStaticData::load(p).map_err(|e| e.to_string())?,
+                None => data::QuasiStaticData::shipped(),
+            };
+            let mut md = String::from("# Hose models (plant.md section 9)\n\n## GRNN, RBF and BP (80/20 split per section, the paper's Fig. 9)\n\n");
+            let cmp = paper::compare_models(&qs, &paper::CompareOptions::default())
+                .map_err(|e| e.to_string())?;
+            let t = cmp.table();
+            println!("{t}");
+            md.push_str(&t);
+            cmp.plot(&out.join("fig9_models.png"))?;
+            md.push_str("\n![measured against predicted](fig9_models.png)\n");
+            if memory {
+                let dy = match &dynamic {
+                    Some(p) => data::DynamicData::load(p).map_err(|e| e.to_string())?,
+                    None => data::DynamicData::shipped(),
+                };
+                eprintln!("leave-one-run-out on the dynamic data ...");
+                let rows = mem::leave_one_run_out(&dy, &qs, 4).map_err(|e| e.to_string())?;
+                let t = mem::loro_table(&rows);
+                println!("{t}");
+                md.push_str("\n## GRNN with memory, held-out dynamic runs\n\n");
+                md.push_str(&t);
+            }
+            if closed_loop {
+                let rows = cl::stepload_comparison().map_err(|e| e.to_string())?;
+                let t = cl::comparison_table(&rows);
+                println!("{t}");
+                md.push_str("\n## Closed loop: MPC-ESO, 800 N step\n\n");
+                md.push_str(&t);
+            }
+            let report = out.join("report.md");
+            std::fs::write(&report, md).map_err(|e| format!("{}: {e}", report.display()))?;
+            eprintln!("report: {}", report.display());
+            Ok(())
+        }
         Command::GapSuite { out } => {
             use host_sim::gap::validation::{cases, markdown, run_suite};
             let t0 = std::time::Instant::now();
