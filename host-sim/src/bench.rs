@@ -132,6 +132,41 @@ pub fn bench(reps: usize) -> Vec<BenchRow> {
             "x real time",
         );
     }
+    // One gap diagnosis of two 10 s runs (one fit, one check) on one core.
+    {
+        use crate::gap::diagnose::{diagnose, Options, Run};
+        use crate::gap::validation::{check_scenario, fit_scenario, rig_log};
+        let mut e = crate::effects::Effects::NONE;
+        e.set(
+            crate::effects::EffectKind::Friction,
+            Some(&[20.0, 30.0, 2e-3]),
+        );
+        let fit = rig_log(fit_scenario(), ControllerKind::MpcEso, &e, 1);
+        let check = rig_log(check_scenario(), ControllerKind::Pid, &e, 2);
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let t0 = Instant::now();
+        let (d, _) = one.install(|| {
+            diagnose(
+                vec![Run::new("fit".into(), fit.clone())],
+                vec![Run::new("check".into(), check.clone())],
+                &Plant::nominal(),
+                &Options::default(),
+            )
+        });
+        let t = t0.elapsed().as_secs_f64();
+        push(
+            &format!(
+                "gap diagnosis, two 10 s runs, large friction (verdict {}, pair search {}), one core",
+                d.verdict,
+                if d.combined.is_some() { "ran" } else { "skipped" }
+            ),
+            t,
+            "s",
+        );
+    }
     // A batch of 16 runs on one thread against every thread.
     let batch: Vec<RunSpec> = (0..16)
         .map(|i| {
