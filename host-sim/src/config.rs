@@ -409,23 +409,36 @@ impl SignalSpec {
                 amplitude,
                 frequency_hz,
                 t0_s,
-            } => Signal::Sine {
-                bias: finite("bias", *bias)?,
-                amplitude: finite("amplitude", *amplitude)?,
-                omega_radps: 2.0 * std::f64::consts::PI * finite("frequency_hz", *frequency_hz)?,
-                t0_s: finite("t0_s", *t0_s)?,
-            },
-            Self::Cosine {
+            }
+            | Self::Cosine {
                 bias,
                 amplitude,
                 frequency_hz,
                 t0_s,
-            } => Signal::Cosine {
-                bias: finite("bias", *bias)?,
-                amplitude: finite("amplitude", *amplitude)?,
-                omega_radps: 2.0 * std::f64::consts::PI * finite("frequency_hz", *frequency_hz)?,
-                t0_s: finite("t0_s", *t0_s)?,
-            },
+            } => {
+                let (bias, amplitude, t0_s) = (
+                    finite("bias", *bias)?,
+                    finite("amplitude", *amplitude)?,
+                    finite("t0_s", *t0_s)?,
+                );
+                let omega_radps =
+                    2.0 * std::f64::consts::PI * finite("frequency_hz", *frequency_hz)?;
+                if matches!(self, Self::Sine { .. }) {
+                    Signal::Sine {
+                        bias,
+                        amplitude,
+                        omega_radps,
+                        t0_s,
+                    }
+                } else {
+                    Signal::Cosine {
+                        bias,
+                        amplitude,
+                        omega_radps,
+                        t0_s,
+                    }
+                }
+            }
             Self::Ramp {
                 start,
                 slope_per_s,

@@ -505,16 +505,6 @@ impl HilTrace {
     }
 }
 
-fn to_sample(r: &Readings) -> Sample {
-    Sample {
-        xo_m: r.xo_m as f32,
-        xi_m: r.xi_m as f32,
-        p1_pa: r.p1_pa as f32,
-        p2_pa: r.p2_pa as f32,
-        ft_n: r.ft_n as f32,
-    }
-}
-
 /// Run `spec` in lockstep with `stepper` (see the module documentation for
 /// the timing). The controller configuration of `spec` must already be in
 /// force at the stepper. The plant carries the spec's effects; the sensors are
@@ -559,7 +549,7 @@ pub fn run_lockstep(
             p2_pa: x.p2_pa,
             ft_n: scenario.load().value(t),
         };
-        let sample = to_sample(&sensors.read(&truth));
+        let sample = sensors.read(&truth).to_sample();
         let ref_m = reference.value(t) as f32;
         let seq = u32::try_from(j).map_err(|_| HilError::Spec("run too long".into()))?;
         let reply = stepper.step(seq, &sample, ref_m)?;

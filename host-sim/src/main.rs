@@ -10,6 +10,45 @@ use host_sim::paper::{run_paper, table_markdown, PaperOptions};
 use host_sim::run::{execute, trace_metrics, RunRequest};
 use std::path::PathBuf;
 
+/// The options that choose a simulated run (shared by run, sweep and hil).
+#[derive(clap::Args, Debug)]
+struct RunOpts {
+    /// Scenario: step, sine, stepload, sineload, openloop, or a TOML file.
+    #[arg(long)]
+    scenario: String,
+    /// Controller: mpc-eso, mpc, pid or fuzzy-pid (else the scenario file's).
+    #[arg(long)]
+    controller: Option<String>,
+    /// Configuration: paper, fast or a TOML file (default paper).
+    #[arg(long)]
+    config: Option<String>,
+    /// Hose model of the plant: nonlinear (default), linear, rigid, grnn, grnn-memory.
+    #[arg(long)]
+    hose: Option<String>,
+    /// Sensor mode: ideal (default) or realistic.
+    #[arg(long)]
+    sensors: Option<String>,
+    /// An unmodelled effect (repeatable): `name` with typical parameters or
+    /// `name:param=value,...`, e.g. leakage:g_m3pspa=1e-13 (plant.md section 12).
+    #[arg(long = "effect")]
+    effects: Vec<String>,
+}
+
+impl RunOpts {
+    fn request(self, seed: Option<u64>, dt_s: Option<f64>) -> RunRequest {
+        RunRequest {
+            scenario: self.scenario,
+            controller: self.controller,
+            config: self.config,
+            hose: self.hose,
+            sensors: self.sensors,
+            seed,
+            dt_s,
+            effects: self.effects,
+        }
+    }
+}
+
 /// Simulator and tools for the miniature double-cylinder hydraulic actuator.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
@@ -63,27 +102,12 @@ enum Command {
         /// The emulated firmware's ELF (default: built with `cargo fw-qemu` if missing).
         #[arg(long, requires = "qemu")]
         elf: Option<PathBuf>,
-        /// Scenario: a nominal name or a TOML file.
-        #[arg(long)]
-        scenario: String,
-        /// Controller: mpc-eso, mpc, pid or fuzzy-pid.
-        #[arg(long)]
-        controller: Option<String>,
-        /// Configuration: paper, fast or a TOML file.
-        #[arg(long)]
-        config: Option<String>,
-        /// Hose model of the plant.
-        #[arg(long)]
-        hose: Option<String>,
-        /// Sensor mode: ideal or realistic.
-        #[arg(long)]
-        sensors: Option<String>,
+        /// What to simulate.
+        #[command(flatten)]
+        what: RunOpts,
         /// Noise seed.
         #[arg(long)]
         seed: Option<u64>,
-        /// An unmodelled effect of the simulated plant (repeatable).
-        #[arg(long = "effect")]
-        effects: Vec<String>,
         /// Also run the same loop in software and check the drive commands are
         /// bit-identical.
         #[arg(long)]
@@ -117,21 +141,9 @@ enum Command {
     /// Parameter sweep and/or Monte Carlo over noise seeds, on every core;
     /// one CSV row of metrics per run.
     Sweep {
-        /// Scenario: a nominal name or a TOML file.
-        #[arg(long)]
-        scenario: String,
-        /// Controller: mpc-eso, mpc, pid or fuzzy-pid.
-        #[arg(long)]
-        controller: Option<String>,
-        /// Configuration: paper, fast or a TOML file.
-        #[arg(long)]
-        config: Option<String>,
-        /// Hose model of the plant.
-        #[arg(long)]
-        hose: Option<String>,
-        /// Sensor mode: ideal or realistic.
-        #[arg(long)]
-        sensors: Option<String>,
+        /// What to simulate.
+        #[command(flatten)]
+        what: RunOpts,
         /// A swept parameter, `table.key=v1,v2,...` (repeatable), e.g. mpc_eso.rw=10,33,100.
         #[arg(long = "param")]
         params: Vec<String>,
@@ -157,31 +169,15 @@ enum Command {
     },
     /// Simulate one scenario and write its run log (interfaces.md section 3).
     Run {
-        /// Scenario: step, sine, stepload, sineload, openloop, or a TOML file.
-        #[arg(long)]
-        scenario: String,
-        /// Controller: mpc-eso, mpc, pid or fuzzy-pid (else the scenario file's).
-        #[arg(long)]
-        controller: Option<String>,
-        /// Configuration: paper, fast or a TOML file (default paper).
-        #[arg(long)]
-        config: Option<String>,
-        /// Hose model of the plant (default nonlinear).
-        #[arg(long)]
-        hose: Option<String>,
-        /// Sensor mode: ideal or realistic (default ideal).
-        #[arg(long)]
-        sensors: Option<String>,
+        /// What to simulate.
+        #[command(flatten)]
+        what: RunOpts,
         /// Noise seed (default 0).
         #[arg(long)]
         seed: Option<u64>,
         /// Plant step in seconds (default 1e-4; 2e-4 for the GRNN hose).
         #[arg(long)]
         dt: Option<f64>,
-        /// An unmodelled effect (repeatable): `name` with typical parameters or
-        /// `name:param=value,...`, e.g. leakage:g_m3pspa=1e-13 (plant.md section 12).
-        #[arg(long = "effect")]
-        effects: Vec<String>,
         /// Where to write the run log (CSV).
         #[arg(long)]
         log: PathBuf,
@@ -321,27 +317,13 @@ fn run(cli: Cli) -> Result<(), String> {
             console,
             qemu,
             elf,
-            scenario,
-            controller,
-            config,
-            hose,
-            sensors,
+            what,
             seed,
-            effects,
             compare,
             log,
         } => {
             use host_sim::hil;
-            let spec = host_sim::run::resolve(&RunRequest {
-                scenario,
-                controller,
-                config,
-                hose,
-                sensors,
-                seed,
-                dt_s: None,
-                effects,
-            })?;
+            let spec = host_sim::run::resolve(&what.request(seed, None))?;
             let trace = match (port, qemu) {
                 (Some(port), false) => {
                     let opts = hil::SerialOptions {
@@ -415,11 +397,7 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
         Command::Sweep {
-            scenario,
-            controller,
-            config,
-            hose,
-            sensors,
+            what,
             params,
             seeds,
             out,
@@ -429,14 +407,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 .map(|p| SweepParam::parse(p))
                 .collect::<Result<Vec<_>, _>>()?;
             let seeds = parse_seeds(&seeds)?;
-            let base = RunRequest {
-                scenario,
-                controller,
-                config,
-                hose,
-                sensors,
-                ..RunRequest::default()
-            };
+            let base = what.request(None, None);
             let t0 = std::time::Instant::now();
             let rows = sweep(&base, &params, &seeds, true)?;
             write_csv(&rows, &out)?;
@@ -465,26 +436,12 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
         Command::Run {
-            scenario,
-            controller,
-            config,
-            hose,
-            sensors,
+            what,
             seed,
             dt,
-            effects,
             log,
         } => {
-            let req = RunRequest {
-                scenario,
-                controller,
-                config,
-                hose,
-                sensors,
-                seed,
-                dt_s: dt,
-                effects,
-            };
+            let req = what.request(seed, dt);
             let (spec, trace) = execute(&req, &log)?;
             let m = trace_metrics(&trace, &spec.scenario);
             eprintln!(

@@ -190,6 +190,19 @@ impl DelayLine {
     }
 }
 
+impl Readings {
+    /// The readings as the control core's sample (f32, as the board has them).
+    pub fn to_sample(&self) -> dca_core::controller::Sample {
+        dca_core::controller::Sample {
+            xo_m: self.xo_m as f32,
+            xi_m: self.xi_m as f32,
+            p1_pa: self.p1_pa as f32,
+            p2_pa: self.p2_pa as f32,
+            ft_n: self.ft_n as f32,
+        }
+    }
+}
+
 /// The sensor set of a run.
 #[derive(Clone, Debug)]
 pub struct Sensors {

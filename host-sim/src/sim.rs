@@ -114,16 +114,6 @@ impl std::fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
-fn to_sample(r: &Readings) -> Sample {
-    Sample {
-        xo_m: r.xo_m as f32,
-        xi_m: r.xi_m as f32,
-        p1_pa: r.p1_pa as f32,
-        p2_pa: r.p2_pa as f32,
-        ft_n: r.ft_n as f32,
-    }
-}
-
 /// Run one scenario; `hook` sees every base tick after the controller step.
 pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, SimError> {
     let dt = spec.dt_s;
@@ -162,7 +152,7 @@ pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, Si
             ft_n: ft,
         };
         let meas = sensors.read(&truth);
-        let sample = to_sample(&meas);
+        let sample = meas.to_sample();
         let (ref_m, out) = match (scenario.command(), ctl.as_mut()) {
             (Command::Reference(r), Some(c)) => {
                 let r = r.value(t);
