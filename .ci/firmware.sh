@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# Firmware CI: release build, clippy on the target, size budget, and (when QEMU is
-# installed) the emulated build on netduinoplus2: a scripted console session, fault
-# injection over the HIL link, and the paper's four closed-loop scenarios through the
-# emulated firmware, bit-identical to the software loop.
+# Firmware CI: release build, clippy on the target, size budget, the instruction count
+# of one control tick (unicorn engine, budget for the worst MPC-ESO tick), and (when
+# QEMU is installed) the emulated build on netduinoplus2: a scripted console session,
+# fault injection over the HIL link, and the paper's four closed-loop scenarios through
+# the emulated firmware, bit-identical to the software loop.
 #
-# Assumes `rustup target add thumbv7em-none-eabihf`. Uses the cargo aliases of
-# .cargo/config.toml. Budgets can be overridden: FLASH_MAX, RAM_MAX (bytes).
+# Assumes `rustup target add thumbv7em-none-eabihf` and python3 with pip (the count
+# installs `unicorn pyelftools` if they are missing). Uses the cargo aliases of
+# .cargo/config.toml. Budgets can be overridden: FLASH_MAX, RAM_MAX (bytes), TICK_MAX
+# (instructions of the worst MPC-ESO tick).
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -16,16 +19,19 @@ QEMU_DIR=target/qemu
 QEMU_ELF=$QEMU_DIR/$TARGET/firmware/dca-firmware
 FLASH_MAX=${FLASH_MAX:-65536} # 64 KiB
 RAM_MAX=${RAM_MAX:-16384}     # 16 KiB
+TICK_MAX=${TICK_MAX:-2000}    # instructions, worst MPC-ESO tick
 
 step() { printf '\n== %s\n' "$*"; }
 
 step "release build"
 cargo fw
 
-step "clippy (board and qemu builds, -D warnings)"
+step "clippy (board, qemu and count builds, -D warnings)"
 cargo fw-clippy
 cargo clippy -p dca-firmware --no-deps --target "$TARGET" --features qemu \
     --target-dir "$QEMU_DIR" -- -D warnings
+cargo clippy -p dca-firmware --no-deps --target "$TARGET" --features count \
+    --bin dca-count -- -D warnings
 
 step "size"
 SYSROOT=$(rustc --print sysroot)
@@ -51,6 +57,13 @@ if [ "$RAM" -gt "$RAM_MAX" ]; then
     fail=1
 fi
 [ "$fail" -eq 0 ] || exit 1
+
+step "instructions per control tick (firmware/count, unicorn engine; worst MPC-ESO <= $TICK_MAX)"
+if ! python3 -c "import unicorn, elftools" 2>/dev/null; then
+    python3 -m pip install --quiet unicorn pyelftools ||
+        python3 -m pip install --quiet --break-system-packages unicorn pyelftools
+fi
+timeout 600 python3 firmware/count/count.py --max-mpc-eso "$TICK_MAX"
 
 if ! command -v qemu-system-arm >/dev/null 2>&1; then
     step "qemu-system-arm not installed: emulated boot skipped"

@@ -124,8 +124,8 @@ impl LineEditor {
                 if len == 0 {
                     return Edit::None;
                 }
-                // Only printable ASCII is ever stored.
-                match core::str::from_utf8(&self.buf[..len]) {
+                // Only printable ASCII is ever stored (and len <= MAX_LINE).
+                match core::str::from_utf8(self.buf.get(..len).unwrap_or(&[])) {
                     Ok(s) => Edit::Line(s),
                     Err(_) => Edit::Bad(LineError::InvalidCharacter),
                 }
@@ -142,11 +142,12 @@ impl LineEditor {
                 if self.error.is_some() {
                     return Edit::None;
                 }
-                if self.len == MAX_LINE {
+                let Some(slot) = self.buf.get_mut(self.len) else {
+                    // The line is full (len == MAX_LINE).
                     self.error = Some(LineError::TooLong);
                     return Edit::None;
-                }
-                self.buf[self.len] = c;
+                };
+                *slot = c;
                 self.len += 1;
                 Edit::Echo(c)
             }
@@ -645,9 +646,9 @@ pub struct LogRow {
 /// Time is `n * step_ms` exactly, printed with 3 decimals.
 pub fn write_log_row<const N: usize>(out: &mut Buf<N>, row: &LogRow) {
     let t_ms = row.n as u64 * row.step_ms as u64;
-    out.push_u64(t_ms / 1000);
+    let (s, ms) = crate::text::div_rem(t_ms, 1000);
+    out.push_u64(s);
     out.push_byte(b'.');
-    let ms = t_ms % 1000;
     out.push_byte(b'0' + (ms / 100) as u8);
     out.push_byte(b'0' + (ms / 10 % 10) as u8);
     out.push_byte(b'0' + (ms % 10) as u8);

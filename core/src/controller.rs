@@ -22,7 +22,7 @@
 use crate::design::{DesignError, MpcParams};
 use crate::eso::{EsoError, EsoFixed, EsoFixedGains, EsoParams};
 use crate::fuzzy::{FuzzyParams, FuzzyPid};
-use crate::fxp::{Pos, Vel};
+use crate::fxp::{self, Pos, Vel, POS_FRAC, VEL_FRAC};
 use crate::mpc::{clamp, Limits, Mpc, MpcGains, Observed};
 use crate::params::PlantParams;
 use crate::pid::{Pid, PidParams};
@@ -288,11 +288,26 @@ pub struct Controller {
     n_c: u32,
     /// Base tick index k.
     k: u64,
+    /// `k mod n_h`, kept as a counter: no 64-bit division per tick.
+    phase_h: u32,
+    /// `k mod n_c`.
+    phase_c: u32,
     /// Command in force.
     v_cmd_mps: f32,
     /// Saturation seen at the last controller update.
     saturated: bool,
     started: bool,
+}
+
+/// `(k + 1) mod n` from `phase = k mod n` and `k_next = k + 1` (wrapping): the
+/// counter restarts with k when k wraps around.
+#[inline]
+fn next_phase(phase: u32, n: u32, k_next: u64) -> u32 {
+    if phase + 1 >= n || k_next == 0 {
+        0
+    } else {
+        phase + 1
+    }
 }
 
 fn ticks(period_s: f64, base_dt_s: f64) -> Result<u32, ConfigError> {
@@ -376,6 +391,8 @@ impl Controller {
             n_h,
             n_c,
             k: 0,
+            phase_h: 0,
+            phase_c: 0,
             v_cmd_mps: 0.0,
             saturated: false,
             started: false,
@@ -445,7 +462,8 @@ impl Controller {
         match &mut self.law {
             Law::MpcEso { mpc, eso, td, .. } => {
                 mpc.u_m = u0;
-                eso.z1 = Pos::saturating_from_num(xo_m);
+                // Pos::saturating_from_num (xo_m is finite).
+                eso.z1 = Pos::from_bits(fxp::f32_to_q::<{ POS_FRAC as i32 }>(xo_m));
                 td.v1_m = xo_m;
             }
             Law::Mpc { mpc, .. } => mpc.u_m = u0,
@@ -460,8 +478,12 @@ impl Controller {
     /// Never panics. A NaN or infinite Xo or reference gives the command 0 and
     /// [`Flags::NON_FINITE_INPUT`], and leaves the law's state untouched.
     pub fn step(&mut self, sample: &Sample, ref_m: f32) -> Output {
-        let k = self.k;
+        // k mod n_h == 0 and k mod n_c == 0, from the phase counters.
+        let eso_tick = self.phase_h == 0;
+        let ctl_tick = self.phase_c == 0;
         self.k = self.k.wrapping_add(1);
+        self.phase_h = next_phase(self.phase_h, self.n_h, self.k);
+        self.phase_c = next_phase(self.phase_c, self.n_c, self.k);
         let mut flags = 0u8;
         if !(sample.xo_m.is_finite() && ref_m.is_finite()) {
             self.v_cmd_mps = 0.0;
@@ -488,8 +510,6 @@ impl Controller {
             self.bumpless_start(y, xi);
             self.started = true;
         }
-        let eso_tick = k.is_multiple_of(self.n_h as u64);
-        let ctl_tick = k.is_multiple_of(self.n_c as u64);
         match &mut self.law {
             Law::MpcEso {
                 gains,
@@ -516,8 +536,10 @@ impl Controller {
                     self.saturated = out.saturated;
                 }
                 if eso_tick {
-                    let u = Vel::saturating_from_num(self.v_cmd_mps);
-                    eso.update(eso_gains, Pos::saturating_from_num(y), u);
+                    // Pos/Vel::saturating_from_num, without the generic conversion.
+                    let u = Vel::from_bits(fxp::f32_to_q::<{ VEL_FRAC as i32 }>(self.v_cmd_mps));
+                    let y = Pos::from_bits(fxp::f32_to_q::<{ POS_FRAC as i32 }>(y));
+                    eso.update(eso_gains, y, u);
                 }
             }
             Law::Mpc { gains, mpc } => {
@@ -554,5 +576,38 @@ impl Controller {
             v_cmd_mps: v,
             flags: Flags(flags),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phase_counters_are_k_mod_n_including_the_wrap_of_k() {
+        let cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
+        let mut c = Controller::new(&cfg).unwrap();
+        let (n_h, n_c) = c.periods();
+        assert_eq!((n_h, n_c), (60, 1000));
+        let sample = Sample::default();
+        // Ordinary ticks, then the last ticks before k wraps around (u64::MAX is
+        // not a multiple of 60 or 1000, so the phases jump back to 0 at the wrap).
+        for start in [0u64, 123_456_789, u64::MAX - 2_500] {
+            c.k = start;
+            c.phase_h = (start % n_h as u64) as u32;
+            c.phase_c = (start % n_c as u64) as u32;
+            for _ in 0..5_000 {
+                let k = c.k;
+                assert_eq!(c.phase_h as u64, k % n_h as u64, "k = {k}");
+                assert_eq!(c.phase_c as u64, k % n_c as u64, "k = {k}");
+                c.step(&sample, 0.01);
+            }
+        }
+        assert!(c.k < 3_000, "k wrapped");
+        // A non-finite input still advances the schedule.
+        let k = c.k;
+        c.step(&sample, f32::NAN);
+        assert_eq!(c.k, k + 1);
+        assert_eq!(c.phase_h as u64, c.k % n_h as u64);
     }
 }

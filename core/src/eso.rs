@@ -180,10 +180,11 @@ pub struct EsoFixed {
 
 impl EsoFixed {
     /// One observer update with measurement `y` and input `u` (old z on the right).
+    #[inline]
     pub fn update(&mut self, g: &EsoFixedGains, y: Pos, u: Vel) {
         let e = self.z1.saturating_sub(y);
-        let f1 = g.fal1.eval(e).to_bits();
-        let f2 = g.fal2.eval(e).to_bits();
+        let (f1, f2) = Fal::eval_pair(&g.fal1, &g.fal2, e);
+        let (f1, f2) = (f1.to_bits(), f2.to_bits());
         let (z1, z2, z3) = (self.z1.to_bits(), self.z2.to_bits(), self.z3.to_bits());
         let d1 = g.h.mul(z2, VEL_FRAC, POS_FRAC) - g.hb1.mul(e.to_bits(), POS_FRAC, POS_FRAC);
         let d2 = g.h.mul(z3, ACC_FRAC, VEL_FRAC) - g.hb2.mul(f1, POS_FRAC, VEL_FRAC)
@@ -194,12 +195,14 @@ impl EsoFixed {
         self.z3 = Acc::from_bits(fxp::sat32(z3 as i64 + d3));
     }
 
-    /// The state as `[z1 m, z2 m/s, z3 m/s^2]` in f32.
+    /// The state as `[z1 m, z2 m/s, z3 m/s^2]` in f32 (nearest, ties to even:
+    /// the values of `to_num::<f32>()`).
+    #[inline]
     pub fn to_f32(&self) -> [f32; 3] {
         [
-            self.z1.to_num::<f32>(),
-            self.z2.to_num::<f32>(),
-            self.z3.to_num::<f32>(),
+            fxp::q_to_f32::<{ POS_FRAC as i32 }>(self.z1.to_bits()),
+            fxp::q_to_f32::<{ VEL_FRAC as i32 }>(self.z2.to_bits()),
+            fxp::q_to_f32::<{ ACC_FRAC as i32 }>(self.z3.to_bits()),
         ]
     }
 }

@@ -115,14 +115,20 @@ pub fn encode<T: Serialize>(msg: &T, out: &mut [u8]) -> Result<usize, FrameError
     let n = postcard::to_slice(msg, &mut raw[..MAX_PAYLOAD - 2])
         .map_err(|_| FrameError::Length)?
         .len();
-    let crc = CRC16.checksum(&raw[..n]);
-    raw[n..n + 2].copy_from_slice(&crc.to_le_bytes());
+    // n <= MAX_PAYLOAD - 2: the `get`s below always succeed (no panic paths,
+    // which would link the formatting machinery into the firmware).
+    let crc = CRC16.checksum(raw.get(..n).unwrap_or(&[]));
+    if let Some(dst) = raw.get_mut(n..n + 2) {
+        dst.copy_from_slice(&crc.to_le_bytes());
+    }
     let n = n + 2;
     if out.len() < cobs::max_encoding_length(n) + 1 {
         return Err(FrameError::Length);
     }
-    let m = cobs::encode(&raw[..n], out);
-    out[m] = 0;
+    // `try_encode`, not `encode`: the same bytes, and no `unwrap` (whose panic
+    // message would link the Debug formatting machinery into the firmware).
+    let m = cobs::try_encode(raw.get(..n).unwrap_or(&[]), out).map_err(|_| FrameError::Length)?;
+    *out.get_mut(m).ok_or(FrameError::Length)? = 0;
     Ok(m + 1)
 }
 
@@ -132,11 +138,11 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameErr
     if frame.len() > MAX_FRAME_LEN {
         return Err(FrameError::Length);
     }
-    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+    let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
     if n < 3 {
         return Err(FrameError::Payload);
     }
-    let (payload, crc) = frame[..n].split_at(n - 2);
+    let (payload, crc) = frame.get(..n).ok_or(FrameError::Cobs)?.split_at(n - 2);
     if CRC16.checksum(payload) != u16::from_le_bytes([crc[0], crc[1]]) {
         return Err(FrameError::Crc);
     }
@@ -145,6 +151,36 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameErr
         return Err(FrameError::Payload);
     }
     Ok(msg)
+}
+
+/// `cobs::decode_in_place` (0.3) without its panic paths, which would link the
+/// formatting machinery into the firmware: the same decoded bytes and length,
+/// `None` where it returns an error.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
+    if buf.is_empty() {
+        return None;
+    }
+    // Stop at the first terminator, if any.
+    let src_end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
+    let (mut src, mut dst) = (0usize, 0usize);
+    while src < src_end {
+        let code = *buf.get(src)?;
+        if src + code as usize > src_end && code != 1 {
+            return None;
+        }
+        src += 1;
+        for _ in 1..code {
+            let b = *buf.get(src)?;
+            *buf.get_mut(dst)? = b;
+            src += 1;
+            dst += 1;
+        }
+        if code != 0xFF && src < src_end {
+            *buf.get_mut(dst)? = 0;
+            dst += 1;
+        }
+    }
+    Some(dst)
 }
 
 /// Collects bytes from a stream into frames at the `0x00` delimiters.
@@ -200,13 +236,15 @@ impl FrameReader {
             if len == 0 {
                 return None;
             }
-            return Some(ReadEvent::Frame(&mut self.buf[..len]));
+            // len <= MAX_FRAME_LEN: `get` only spares the panic path.
+            return self.buf.get_mut(..len).map(ReadEvent::Frame);
         }
-        if self.len < MAX_FRAME_LEN {
-            self.buf[self.len] = byte;
-            self.len += 1;
-        } else {
-            self.overflow = true;
+        match self.buf.get_mut(self.len) {
+            Some(slot) => {
+                *slot = byte;
+                self.len += 1;
+            }
+            None => self.overflow = true,
         }
         None
     }
@@ -347,5 +385,51 @@ impl LinkMonitor {
     /// Restart the timeout without a frame (e.g. while frames are not expected).
     pub fn idle(&mut self) {
         self.idle_ticks = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cobs_decode_matches_the_cobs_crate() {
+        let mut x: u32 = 0x1234_5678;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x
+        };
+        for case in 0..20_000 {
+            let len = (next() % 70) as usize;
+            let mut a = [0u8; 70];
+            for v in a.iter_mut().take(len) {
+                // Mostly small codes and few zeros, so that many frames are valid.
+                *v = match next() % 8 {
+                    0 => 0,
+                    1 => 0xff,
+                    2..=4 => (next() % 6) as u8 + 1,
+                    _ => next() as u8,
+                };
+            }
+            if case % 3 == 0 {
+                // A valid encoding of random bytes.
+                let mut raw = [0u8; 40];
+                for v in raw.iter_mut() {
+                    *v = if next() % 4 == 0 { 0 } else { next() as u8 };
+                }
+                let m = cobs::try_encode(&raw[..len.min(40)], &mut a).unwrap();
+                let (mut p, mut q) = (a, a);
+                let want = cobs::decode_in_place(&mut p[..m]).ok();
+                assert_eq!(cobs_decode_in_place(&mut q[..m]), want);
+                assert_eq!(p, q);
+                continue;
+            }
+            let (mut p, mut q) = (a, a);
+            let want = cobs::decode_in_place(&mut p[..len]).ok();
+            assert_eq!(cobs_decode_in_place(&mut q[..len]), want, "{:?}", &a[..len]);
+            assert_eq!(p, q);
+        }
     }
 }

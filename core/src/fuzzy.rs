@@ -77,9 +77,6 @@ pub const RULES_KD: [[i8; 7]; 7] = [
     [NS, NS, NM, NB, NM, NS, NS],
 ];
 
-/// Number of samples of the output universe used for the centroid.
-const N_OUT: usize = 49;
-
 /// Fuzzy PID parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FuzzyParams {
@@ -155,30 +152,57 @@ fn fuzzify(x: f32) -> [(usize, f32); 2] {
 
 /// Mamdani inference of one table: centroid on [-3, 3].
 pub fn infer(table: &[[i8; 7]; 7], e_n: f32, ec_n: f32) -> f32 {
-    let fe = fuzzify(e_n);
-    let fc = fuzzify(ec_n);
-    let mut rules = [(0.0f32, 0.0f32); 4];
-    let mut k = 0;
-    for &(i, mu_e) in &fe {
-        for &(j, mu_c) in &fc {
+    infer_sets(table, &fuzzify(e_n), &fuzzify(ec_n))
+}
+
+/// Membership degrees b/8, b = 0..=8, of the sample points in a triangle.
+const EIGHTHS: [f32; 9] = [0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0];
+
+/// [`infer`] from the fuzzified inputs (the same numbers as clipping the four
+/// rules at every sample point and taking the largest, computed with less work):
+///
+/// * rules with the same output centre c clip the same triangle m(x, c), and
+///   max_r min(m, w_r) = min(m, max_r w_r): one strength per centre suffices;
+/// * the sample point x = a - 3 + b/8 (b = 0..7) is inside the triangles of the
+///   centres a - 3 (m = 1 - b/8) and a - 2 (m = b/8) only, and both degrees are
+///   exact in binary, as in the direct evaluation;
+/// * where both strengths are 0 the aggregated degree is 0, and adding 0 x to
+///   the numerator and 0 to the denominator leaves them unchanged (neither is
+///   ever -0), so those 8 points are skipped.
+///
+/// The sums are formed in the same order with the same operands, so the
+/// result is bit-identical to the direct evaluation.
+fn infer_sets(table: &[[i8; 7]; 7], fe: &[(usize, f32); 2], fc: &[(usize, f32); 2]) -> f32 {
+    // Strength per output centre c (index c + 3); index 7 stays 0.
+    let mut strength = [0.0f32; 8];
+    for &(i, mu_e) in fe {
+        for &(j, mu_c) in fc {
             let w = if mu_e < mu_c { mu_e } else { mu_c };
-            rules[k] = (w, table[i][j] as f32);
-            k += 1;
+            // i, j <= 6 (fuzzify); the masks only spare the bounds checks.
+            let s = &mut strength[(table[i.min(6)][j.min(6)] + 3) as usize & 7];
+            if w > *s {
+                *s = w;
+            }
         }
     }
     let (mut num, mut den) = (0.0f32, 0.0f32);
-    for n in 0..N_OUT {
-        let x = n as f32 * 0.125 - 3.0;
-        let mut mu = 0.0f32;
-        for &(w, c) in &rules {
-            let m = membership(x, c);
-            let clipped = if m < w { m } else { w };
-            if clipped > mu {
-                mu = clipped;
-            }
+    for a in 0..7 {
+        let (s_lo, s_hi) = (strength[a], strength[a + 1]);
+        if !(s_lo > 0.0 || s_hi > 0.0) {
+            continue;
         }
-        num += mu * x;
-        den += mu;
+        // The last segment is the single point x = 3.
+        let points = if a == 6 { 1 } else { 8 };
+        // Every degree and strength is +0 or positive, where the order of the
+        // bit patterns is the order of the values: min and max on the bits.
+        let (s_lo, s_hi) = (s_lo.to_bits(), s_hi.to_bits());
+        for b in 0..points {
+            let x = (8 * a + b) as f32 * 0.125 - 3.0;
+            let (m_lo, m_hi) = (EIGHTHS[8 - b].to_bits(), EIGHTHS[b].to_bits());
+            let mu = f32::from_bits(m_lo.min(s_lo).max(m_hi.min(s_hi)));
+            num += mu * x;
+            den += mu;
+        }
     }
     if den > 0.0 {
         num / den
@@ -228,13 +252,13 @@ impl FuzzyPid {
 
     /// The gains the rule base gives for error `e_m` and error rate `ec_mps`.
     pub fn schedule(p: &FuzzyParams, e_m: f32, ec_mps: f32) -> PidParams {
-        let e_n = normalise(e_m, p.e_span_m);
-        let ec_n = normalise(ec_mps, p.ec_span_mps);
+        let fe = fuzzify(normalise(e_m, p.e_span_m));
+        let fc = fuzzify(normalise(ec_mps, p.ec_span_mps));
         let b = &p.base;
         PidParams {
-            kp: non_negative(b.kp + infer(&RULES_KP, e_n, ec_n) / 3.0 * p.dkp_max),
-            ki: non_negative(b.ki + infer(&RULES_KI, e_n, ec_n) / 3.0 * p.dki_max),
-            kd: non_negative(b.kd + infer(&RULES_KD, e_n, ec_n) / 3.0 * p.dkd_max),
+            kp: non_negative(b.kp + infer_sets(&RULES_KP, &fe, &fc) / 3.0 * p.dkp_max),
+            ki: non_negative(b.ki + infer_sets(&RULES_KI, &fe, &fc) / 3.0 * p.dki_max),
+            kd: non_negative(b.kd + infer_sets(&RULES_KD, &fe, &fc) / 3.0 * p.dkd_max),
             ts_s: b.ts_s,
         }
     }
@@ -258,6 +282,68 @@ impl FuzzyPid {
 #[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
+
+    /// The direct evaluation: four clipped rules at each of the 49 points.
+    fn infer_reference(table: &[[i8; 7]; 7], e_n: f32, ec_n: f32) -> f32 {
+        let (fe, fc) = (fuzzify(e_n), fuzzify(ec_n));
+        let mut rules = [(0.0f32, 0.0f32); 4];
+        let mut k = 0;
+        for &(i, mu_e) in &fe {
+            for &(j, mu_c) in &fc {
+                let w = if mu_e < mu_c { mu_e } else { mu_c };
+                rules[k] = (w, table[i][j] as f32);
+                k += 1;
+            }
+        }
+        let (mut num, mut den) = (0.0f32, 0.0f32);
+        for n in 0..49 {
+            let x = n as f32 * 0.125 - 3.0;
+            let mut mu = 0.0f32;
+            for &(w, c) in &rules {
+                let m = membership(x, c);
+                let clipped = if m < w { m } else { w };
+                if clipped > mu {
+                    mu = clipped;
+                }
+            }
+            num += mu * x;
+            den += mu;
+        }
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
+    }
+
+    #[test]
+    fn inference_is_bit_identical_to_the_direct_evaluation() {
+        // A fine grid (every sample point and halfway between), an irregular
+        // sweep and values next to the set boundaries.
+        let mut inputs = [0.0f32; 97 + 438 + 6];
+        for (i, v) in inputs.iter_mut().enumerate().take(97) {
+            *v = i as f32 * 0.0625 - 3.0;
+        }
+        for (i, v) in inputs[97..97 + 438].iter_mut().enumerate() {
+            *v = -3.0 + i as f32 * 0.0137;
+        }
+        inputs[97 + 438..].copy_from_slice(&[
+            -2.999_999_8,
+            2.999_999_8,
+            -0.0,
+            1e-7,
+            -1e-7,
+            0.999_999_94,
+        ]);
+        for t in [&RULES_KP, &RULES_KI, &RULES_KD] {
+            for &e in &inputs {
+                for &ec in inputs.iter().step_by(7) {
+                    let (got, want) = (infer(t, e, ec), infer_reference(t, e, ec));
+                    assert_eq!(got.to_bits(), want.to_bits(), "({e}, {ec})");
+                }
+            }
+        }
+    }
 
     #[test]
     fn tables_are_point_symmetric() {

@@ -36,6 +36,7 @@ pub const ACC_FRAC: u32 = 16;
 pub const LOG2_FRAC: u32 = 24;
 
 /// Saturate an `i64` to the `i32` range.
+#[inline]
 pub fn sat32(x: i64) -> i32 {
     if x > i32::MAX as i64 {
         i32::MAX
@@ -54,7 +55,10 @@ pub fn shift_round(p: i64, sh: i32) -> i64 {
             // |p| < 2^62: the rounded result is 0 (or -1 for tiny negatives: 0 is nearer).
             return 0;
         }
-        (p + (1i64 << (sh - 1))) >> sh
+        // (p + 2^(sh-1)) >> sh, computed as ((p >> (sh-1)) + 1) >> 1: with
+        // p = q 2^(sh-1) + rest (0 <= rest < 2^(sh-1)) both are
+        // floor((q + 1)/2), and this form needs no 64-bit constant.
+        ((p >> (sh - 1)) + 1) >> 1
     } else if sh < 0 {
         let l = (-sh) as u32;
         if l >= 62 {
@@ -70,6 +74,44 @@ pub fn shift_round(p: i64, sh: i32) -> i64 {
     } else {
         p
     }
+}
+
+/// `2^e` as an `f32`, for `-126 <= e <= 127`.
+const fn pow2_f32(e: i32) -> f32 {
+    f32::from_bits(((127 + e) as u32) << 23)
+}
+
+/// A Q value with `FRAC` fractional bits as the nearest `f32` (ties to even):
+/// the same value as the `fixed` types' `to_num::<f32>()`, for `FRAC <= 32`.
+///
+/// The integer-to-float conversion rounds once (to nearest, ties to even) and
+/// the scaling by a power of two is exact, so this is one `vcvt` and one `vmul`
+/// on a Cortex-M4 instead of a software conversion.
+#[inline]
+pub fn q_to_f32<const FRAC: i32>(bits: i32) -> f32 {
+    bits as f32 * pow2_f32(-FRAC)
+}
+
+/// A finite `f32` to a Q value with `FRAC` fractional bits, rounded to nearest
+/// (ties to even) and saturated to the `i32` range: the same value as the
+/// `fixed` types' `saturating_from_num`, for `FRAC <= 32`. NaN gives 0 (where
+/// `saturating_from_num` panics).
+///
+/// The scaling by 2^FRAC is exact (it can only overflow to infinity, which
+/// saturates); below 2^23 adding and removing 2^23 rounds to an integer in the
+/// default rounding mode (ties to even); from 2^23 on every `f32` is an integer.
+#[inline]
+pub fn f32_to_q<const FRAC: i32>(x: f32) -> i32 {
+    const TWO_23: f32 = 8_388_608.0;
+    let s = x * pow2_f32(FRAC);
+    let a = s.abs();
+    let r = if a < TWO_23 {
+        ((a + TWO_23) - TWO_23).copysign(s)
+    } else {
+        s
+    };
+    // `as` saturates at the i32 range.
+    r as i32
 }
 
 /// A real constant as a normalised mantissa and a binary exponent:
@@ -122,6 +164,7 @@ impl Coeff {
 
     /// `self * x` where `x` has `fin` fractional bits; the result has `fout`
     /// fractional bits, rounded to nearest, not yet saturated.
+    #[inline]
     pub fn mul(self, x: i32, fin: u32, fout: u32) -> i64 {
         let p = self.mant as i64 * x as i64;
         shift_round(p, self.shift + fin as i32 - fout as i32)
@@ -160,37 +203,71 @@ pub fn log2_pos(x: Pos) -> Option<i32> {
     if raw <= 0 {
         return None;
     }
+    Some(log2_raw(raw))
+}
+
+/// [`log2_pos`] of a raw Q4.28 value `raw > 0`.
+///
+/// The mantissa m stays within [2^30, 2^31) at the top of every iteration, so
+/// the square is a 32 x 32 -> 64-bit multiply (one `umlal` on a Cortex-M) and
+/// the halving step is taken without a branch: the loop's instruction count
+/// does not depend on the data.
+#[inline]
+fn log2_raw(raw: i32) -> i32 {
     let n = 31 - raw.leading_zeros() as i32; // position of the leading one, 0..=30
-    let mut m: u64 = (raw as u64) << (30 - n); // [2^30, 2^31): mantissa in Q30
-    let mut frac: i32 = 0;
-    let mut i = 1;
-    while i <= LOG2_FRAC as i32 {
-        m = (m * m + (1u64 << 29)) >> 30;
-        if m >= 1u64 << 31 {
-            m = (m + 1) >> 1;
-            frac |= 1 << (LOG2_FRAC as i32 - i);
-        }
+    let mut m: u32 = (raw as u32) << (30 - n); // [2^30, 2^31): mantissa in Q30
+    let mut frac: u32 = 0;
+    let mut i = 0;
+    while i < LOG2_FRAC {
+        // m^2 in Q30 rounded is (m^2 + 2^29) >> 30; when that reaches 2.0
+        // (2^31) it is halved with rounding: ((q >> 30) + 1) >> 1 =
+        // ((q + 2^30) >> 30) >> 1 with q = m^2 + 2^29 (both are
+        // floor((q + 2^30) / 2^31)). m stays in [2^30, 2^31): q < 2^62, so
+        // `big` is the bit q >> 61 and (q + 2^30) >> 30 fits in 32 bits.
+        let q = m as u64 * m as u64 + (1 << 29);
+        let big = (q >> 61) as u32;
+        m = (((q + ((big as u64) << 30)) >> 30) as u32) >> big;
+        // The fraction bits arrive most significant first.
+        frac = (frac << 1) | big;
         i += 1;
     }
-    Some(((n - POS_FRAC as i32) << LOG2_FRAC) + frac)
+    ((n - POS_FRAC as i32) << LOG2_FRAC) + frac as i32
 }
 
 /// 2^v for `v` in Q8.24, as a Q4.28 value (saturated to its range).
+///
+/// The running product r stays in [2^30, 2^31) (a product of factors in
+/// [1, 2) whose exponents sum to less than 1), so every step is a 32 x 32 ->
+/// 64-bit multiply. Only the set fraction bits cost a multiply; they are taken
+/// most significant first (the order of the rounded products matters), found
+/// with a count of leading zeros.
 pub fn exp2_to_pos(v: i32) -> Pos {
     let ip = v >> LOG2_FRAC; // floor
-    let fp = v & ((1 << LOG2_FRAC) - 1);
-    let mut r: u64 = 1 << 30; // 1.0 in Q30
-    let mut i = 0;
-    while i < LOG2_FRAC as usize {
-        if fp & (1 << (LOG2_FRAC as usize - 1 - i)) != 0 {
-            r = (r * EXP2_TABLE[i] + (1 << 29)) >> 30;
-        }
-        i += 1;
+    let mut bits = (v & ((1 << LOG2_FRAC) - 1)) as u32;
+    let mut r: u32 = 1 << 30; // 1.0 in Q30
+    while bits != 0 {
+        let lz = bits.leading_zeros(); // 8..=31: bit 31 - lz, table entry lz - 8
+                                       // (r t + 2^29) >> 30 < 2^31: fits in u32.
+        r = ((r as u64 * EXP2_BY_LZ[(lz & 31) as usize] as u64 + (1 << 29)) >> 30) as u32;
+        bits &= !(1 << (31 - lz));
     }
     // r in [2^30, 2^31) is 2^fp in Q30; scale by 2^ip into Q28.
     let out = shift_round(r as i64, 30 - POS_FRAC as i32 - ip);
     Pos::from_bits(sat32(out))
 }
+
+/// [`EXP2_TABLE`] as `u32` (every entry is below 2^31), indexed by the leading
+/// zeros of the 24-bit fraction bit it belongs to: entry `8 + i` is 2^(2^-(i+1)).
+const EXP2_BY_LZ: [u32; 32] = {
+    let mut out = [0u32; 32];
+    let mut i = 0;
+    while i < 24 {
+        assert!(EXP2_TABLE[i] < 1 << 31);
+        out[8 + i] = EXP2_TABLE[i] as u32;
+        i += 1;
+    }
+    out
+};
 
 /// Han's fal function, precomputed for one exponent and linear-zone width.
 ///
@@ -211,12 +288,19 @@ impl Fal {
         if !(alpha > 0.0 && alpha <= 1.0 && delta_m > 0.0 && delta_m < 7.9) {
             return None;
         }
-        let delta = Pos::checked_from_num(delta_m)?;
+        // delta_m * 2^28 < 2^31 here, and below 2^52 adding and removing 2^52
+        // rounds to an integer (ties to even): `Pos::checked_from_num(delta_m)`
+        // without the generic conversion code.
+        const TWO_52: f64 = 4_503_599_627_370_496.0;
+        let delta =
+            Pos::from_bits(((delta_m * (1u32 << POS_FRAC) as f64 + TWO_52) - TWO_52) as i32);
         if delta.to_bits() <= 0 {
             return None;
         }
-        // The slope is taken at the quantised delta so both branches meet.
-        let slope = Coeff::from_f64(libm::pow(delta.to_num::<f64>(), alpha - 1.0))?;
+        // The slope is taken at the quantised delta so both branches meet
+        // (the delta as f64: exact, as `to_num::<f64>()`).
+        let delta_f = delta.to_bits() as f64 / (1u32 << POS_FRAC) as f64;
+        let slope = Coeff::from_f64(libm::pow(delta_f, alpha - 1.0))?;
         Some(Self {
             alpha_q30: libm::round(alpha * 1_073_741_824.0) as i32,
             delta,
@@ -228,10 +312,37 @@ impl Fal {
     pub fn eval(&self, e: Pos) -> Pos {
         let ae = e.saturating_abs();
         if ae <= self.delta {
-            return Pos::from_bits(sat32(self.slope.mul(e.to_bits(), POS_FRAC, POS_FRAC)));
+            return self.linear(e);
         }
         // ae > delta > 0, so the logarithm exists.
-        let l = log2_pos(ae).unwrap_or(0);
+        self.power(e, log2_raw(ae.to_bits()))
+    }
+
+    /// `(a.eval(e), b.eval(e))`, with the logarithm of |e| taken at most once.
+    #[inline]
+    pub fn eval_pair(a: &Self, b: &Self, e: Pos) -> (Pos, Pos) {
+        let ae = e.saturating_abs();
+        let (lin_a, lin_b) = (ae <= a.delta, ae <= b.delta);
+        // Only used where ae > delta > 0: the logarithm exists.
+        let l = if lin_a && lin_b {
+            0
+        } else {
+            log2_raw(ae.to_bits())
+        };
+        let fa = if lin_a { a.linear(e) } else { a.power(e, l) };
+        let fb = if lin_b { b.linear(e) } else { b.power(e, l) };
+        (fa, fb)
+    }
+
+    /// The linear zone: `e delta^(alpha - 1)`.
+    #[inline]
+    fn linear(&self, e: Pos) -> Pos {
+        Pos::from_bits(sat32(self.slope.mul(e.to_bits(), POS_FRAC, POS_FRAC)))
+    }
+
+    /// Outside the linear zone: `|e|^alpha sign(e)` from `l = log2 |e|` (Q8.24).
+    #[inline]
+    fn power(&self, e: Pos, l: i32) -> Pos {
         let v = shift_round(l as i64 * self.alpha_q30 as i64, 30);
         let mag = exp2_to_pos(sat32(v));
         if e.is_negative() {
@@ -280,6 +391,175 @@ mod tests {
         let big = Coeff::from_f64(1e15).unwrap();
         assert_eq!(big.mul(i32::MAX, 0, 30), i64::MAX);
         assert_eq!(big.mul(i32::MIN, 0, 30), i64::MIN);
+    }
+
+    /// The first implementation of `log2_pos` (64-bit, branching): the
+    /// optimised one must give the same bits.
+    fn log2_reference(x: Pos) -> Option<i32> {
+        let raw = x.to_bits();
+        if raw <= 0 {
+            return None;
+        }
+        let n = 31 - raw.leading_zeros() as i32;
+        let mut m: u64 = (raw as u64) << (30 - n);
+        let mut frac: i32 = 0;
+        let mut i = 1;
+        while i <= LOG2_FRAC as i32 {
+            m = (m * m + (1u64 << 29)) >> 30;
+            if m >= 1u64 << 31 {
+                m = (m + 1) >> 1;
+                frac |= 1 << (LOG2_FRAC as i32 - i);
+            }
+            i += 1;
+        }
+        Some(((n - POS_FRAC as i32) << LOG2_FRAC) + frac)
+    }
+
+    /// The first implementation of `exp2_to_pos` (a 64-bit multiply per set bit).
+    fn exp2_reference(v: i32) -> Pos {
+        let ip = v >> LOG2_FRAC;
+        let fp = v & ((1 << LOG2_FRAC) - 1);
+        let mut r: u64 = 1 << 30;
+        for i in 0..LOG2_FRAC as usize {
+            if fp & (1 << (LOG2_FRAC as usize - 1 - i)) != 0 {
+                r = (r * EXP2_TABLE[i] + (1 << 29)) >> 30;
+            }
+        }
+        let sh = 30 - POS_FRAC as i32 - ip;
+        let out = if sh > 0 {
+            if sh >= 63 {
+                0
+            } else {
+                (r as i64 + (1i64 << (sh - 1))) >> sh
+            }
+        } else {
+            shift_round(r as i64, sh)
+        };
+        Pos::from_bits(sat32(out))
+    }
+
+    /// Odd strides through the whole i32 range, plus the ends.
+    fn sweep(stride: u32) -> impl Iterator<Item = i32> {
+        (0..=u32::MAX / stride)
+            .map(move |i| i.wrapping_mul(stride) as i32)
+            .chain([i32::MIN, -1, 0, 1, i32::MAX])
+    }
+
+    #[test]
+    fn log2_and_exp2_are_bit_identical_to_the_reference() {
+        for v in sweep(65_537) {
+            let x = Pos::from_bits(v);
+            assert_eq!(log2_pos(x), log2_reference(x), "log2 {v}");
+            assert_eq!(exp2_to_pos(v), exp2_reference(v), "exp2 {v}");
+        }
+        // Every fraction bit pattern of exp2 at one integer part.
+        for fp in (0..1 << 24).step_by(97) {
+            let v = (-3 << 24) | fp;
+            assert_eq!(exp2_to_pos(v), exp2_reference(v), "exp2 {v}");
+        }
+        // Mantissas next to 2.0, where the halving step of log2 rounds.
+        for raw in (i32::MAX - 5_000..=i32::MAX).chain((1 << 30) - 5_000..(1 << 30) + 5_000) {
+            let x = Pos::from_bits(raw);
+            assert_eq!(log2_pos(x), log2_reference(x), "log2 {raw}");
+        }
+    }
+
+    #[test]
+    fn shift_round_matches_add_then_shift() {
+        for p in sweep(1_000_003).map(|v| (v as i64) << 30 | (v as u32 as i64 & 0x3fff_ffff)) {
+            for sh in 1..63 {
+                assert_eq!(
+                    shift_round(p, sh),
+                    (p + (1i64 << (sh - 1))) >> sh,
+                    "{p} {sh}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn fal_delta_is_the_fixed_crates_rounding() {
+        // Random deltas, and exact ties at the Q4.28 resolution.
+        let mut x: u64 = 0x853C_49E6_748F_EA9B;
+        for i in 0..20_000u32 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let d = if i % 2 == 0 {
+                (x >> 11) as f64 / (1u64 << 53) as f64 * 7.9
+            } else {
+                ((x % (1 << 31)) as f64 + 0.5) / (1u64 << POS_FRAC) as f64
+            };
+            if let Some(f) = Fal::new(0.5, d) {
+                assert_eq!(Some(f.delta), Pos::checked_from_num(d), "{d:e}");
+                let slope = libm::pow(f.delta.to_num::<f64>(), -0.5);
+                assert_eq!(f.slope, Coeff::from_f64(slope).unwrap());
+            }
+        }
+    }
+
+    #[test]
+    fn fal_pair_equals_two_evaluations() {
+        let a = Fal::new(0.5, 0.005).unwrap();
+        let b = Fal::new(0.25, 0.01).unwrap();
+        for e in sweep(40_009) {
+            let e = Pos::from_bits(e);
+            assert_eq!(Fal::eval_pair(&a, &b, e), (a.eval(e), b.eval(e)), "{e}");
+            assert_eq!(Fal::eval_pair(&b, &a, e), (b.eval(e), a.eval(e)), "{e}");
+        }
+    }
+
+    #[test]
+    fn float_conversions_equal_the_fixed_crate() {
+        use fixed::types::{I16F16, I8F24};
+        for v in sweep(3_001) {
+            assert_eq!(
+                q_to_f32::<28>(v).to_bits(),
+                Pos::from_bits(v).to_num::<f32>().to_bits()
+            );
+            assert_eq!(
+                q_to_f32::<24>(v).to_bits(),
+                I8F24::from_bits(v).to_num::<f32>().to_bits()
+            );
+            assert_eq!(
+                q_to_f32::<16>(v).to_bits(),
+                I16F16::from_bits(v).to_num::<f32>().to_bits()
+            );
+        }
+        let specials = [
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            2.5,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let fs = sweep(3_001)
+            .map(|v| f32::from_bits(v as u32))
+            .chain(specials)
+            .filter(|x| !x.is_nan());
+        for x in fs {
+            assert_eq!(
+                f32_to_q::<28>(x),
+                Pos::saturating_from_num(x).to_bits(),
+                "{x:e}"
+            );
+            assert_eq!(
+                f32_to_q::<24>(x),
+                I8F24::saturating_from_num(x).to_bits(),
+                "{x:e}"
+            );
+            // Ties at the resolution of the format.
+            let t = (x.to_bits() as i32 >> 8) as f32 + 0.5;
+            assert_eq!(
+                f32_to_q::<0>(t),
+                fixed::types::I32F0::saturating_from_num(t).to_bits(),
+                "{t:e}"
+            );
+        }
+        assert_eq!(f32_to_q::<28>(f32::NAN), 0);
     }
 
     #[test]

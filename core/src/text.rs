@@ -192,12 +192,13 @@ impl<const N: usize> Buf<N> {
     pub fn as_str(&self) -> &str {
         // Only whole UTF-8 strings and ASCII bytes are ever written, and a string
         // that does not fit is dropped whole.
-        core::str::from_utf8(&self.data[..self.len]).unwrap_or("")
+        core::str::from_utf8(self.as_bytes()).unwrap_or("")
     }
 
     /// The bytes written so far.
     pub fn as_bytes(&self) -> &[u8] {
-        &self.data[..self.len]
+        // len <= N always; `get` spares the panic path.
+        self.data.get(..self.len).unwrap_or(&[])
     }
 
     /// Bytes written.
@@ -223,13 +224,20 @@ impl<const N: usize> Buf<N> {
 
     /// Append a string (whole or not at all).
     pub fn push_str(&mut self, s: &str) {
-        let b = s.as_bytes();
-        if self.len + b.len() > N {
-            self.overflow = true;
-            return;
+        self.push_bytes(s.as_bytes());
+    }
+
+    /// Append ASCII bytes (whole or not at all).
+    fn push_bytes(&mut self, b: &[u8]) {
+        match self.data.get_mut(self.len..self.len + b.len()) {
+            Some(dst) => {
+                for (d, s) in dst.iter_mut().zip(b) {
+                    *d = *s;
+                }
+                self.len += b.len();
+            }
+            None => self.overflow = true,
         }
-        self.data[self.len..self.len + b.len()].copy_from_slice(b);
-        self.len += b.len();
     }
 
     /// Append one ASCII byte.
@@ -245,24 +253,19 @@ impl<const N: usize> Buf<N> {
 
     /// Append an unsigned integer in decimal.
     pub fn push_u64(&mut self, mut v: u64) {
+        // The digits, least significant in the last byte (u64: at most 20).
         let mut tmp = [0u8; 20];
         let mut n = 0;
-        loop {
-            tmp[n] = b'0' + (v % 10) as u8;
+        for slot in tmp.iter_mut().rev() {
+            let (q, r) = div_rem(v, 10);
+            *slot = b'0' + r as u8;
             n += 1;
-            v /= 10;
+            v = q;
             if v == 0 {
                 break;
             }
         }
-        if self.len + n > N {
-            self.overflow = true;
-            return;
-        }
-        for k in 0..n {
-            self.data[self.len + k] = tmp[n - 1 - k];
-        }
-        self.len += n;
+        self.push_bytes(tmp.get(tmp.len() - n..).unwrap_or(&[]));
     }
 
     /// Append a signed integer in decimal.
@@ -289,14 +292,14 @@ impl<const N: usize> Buf<N> {
             return;
         }
         let n = scaled as u64;
-        let p = 10u64.pow(decimals);
+        let p = 10u32.pow(decimals);
         if v < 0.0 && n != 0 {
             self.push_byte(b'-');
         }
-        self.push_u64(n / p);
+        let (int, mut frac) = div_rem(n, p);
+        self.push_u64(int);
         if decimals > 0 {
             self.push_byte(b'.');
-            let mut frac = n % p;
             let mut div = p / 10;
             while div > 0 {
                 self.push_byte(b'0' + (frac / div) as u8);
@@ -360,15 +363,16 @@ impl<const N: usize> Buf<N> {
         }
         if digits >= hi {
             // 9.999...5 rounded up to the next power of ten.
-            digits /= 10;
+            digits = div_rem(digits, 10).0;
             e += 1;
         }
         let mut d = [0u8; 9];
         let n = n as usize;
         let mut x = digits;
         for k in (0..n).rev() {
-            d[k] = b'0' + (x % 10) as u8;
-            x /= 10;
+            let (q, r) = div_rem(x, 10);
+            d[k] = b'0' + r as u8;
+            x = q;
         }
         let mut last = n;
         while last > 1 && d[last - 1] == b'0' {
@@ -407,6 +411,29 @@ impl<const N: usize> Buf<N> {
     }
 }
 
+/// `(n / d, n % d)` for `0 < d < 2^31`, with 32-bit divisions only (the
+/// firmware then links no 64-bit division routine; the Cortex-M4 divides 32-bit
+/// numbers in hardware). Exact: a long division of the low word, one bit at a
+/// time, after a hardware division of the high word.
+pub(crate) fn div_rem(n: u64, d: u32) -> (u64, u32) {
+    let (hi, lo) = ((n >> 32) as u32, n as u32);
+    if hi == 0 {
+        return ((lo / d) as u64, lo % d);
+    }
+    let (q_hi, mut r) = (hi / d, hi % d);
+    let mut q_lo = 0u32;
+    for i in (0..32).rev() {
+        // r < d < 2^31, so 2r + 1 fits.
+        r = (r << 1) | ((lo >> i) & 1);
+        q_lo <<= 1;
+        if r >= d {
+            r -= d;
+            q_lo |= 1;
+        }
+    }
+    (((q_hi as u64) << 32) | q_lo as u64, r)
+}
+
 /// floor(log10(a)) for finite a > 0, by comparison with exact powers of ten
 /// (exact for 1e-22 <= a < 1e23, within one outside; no `log10`).
 fn decimal_exponent(a: f64) -> i32 {
@@ -430,22 +457,18 @@ fn decimal_exponent(a: f64) -> i32 {
 }
 
 /// round(a * 10^p) as an integer, with an exact power of ten where possible.
+///
+/// Beyond 10^22 the scaling is done in steps of 10^22 (one step up to 10^44,
+/// as the exponent range of f32 values needs; more for tiny f64 values).
 fn scaled_digits(a: f64, p: i32) -> u64 {
-    let s = if p >= 0 {
-        let p = p as usize;
-        if p <= 22 {
-            a * POW10[p]
-        } else {
-            a * POW10[22] * POW10[p - 22]
-        }
-    } else {
-        let q = (-p) as usize;
-        if q <= 22 {
-            a / POW10[q]
-        } else {
-            a / POW10[22] / POW10[q - 22]
-        }
-    };
+    let mut s = a;
+    let mut k = p.unsigned_abs();
+    while k > 22 {
+        s = if p >= 0 { s * POW10[22] } else { s / POW10[22] };
+        k -= 22;
+    }
+    let pk = POW10[k.min(22) as usize];
+    let s = if p >= 0 { s * pk } else { s / pk };
     libm::round(s) as u64
 }
 
@@ -456,6 +479,67 @@ impl<const N: usize> core::fmt::Write for Buf<N> {
             Err(core::fmt::Error)
         } else {
             Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiny_and_huge_values_print_instead_of_panicking() {
+        // Scalings beyond 10^44 once indexed past the power table (a panic
+        // for, e.g., a subnormal f32 setting or HIL sample shown by `get` or
+        // `status`).
+        for (v, sig, want) in [
+            (1e-40f64, 7, "1e-40"),
+            (1e-300, 9, "1e-300"),
+            (4.9e-324, 9, "4.94065646e-324"),
+            (1.5e300, 9, "1.5e300"),
+            (f64::MAX, 9, "1.79769313e308"),
+        ] {
+            let mut b: Buf<64> = Buf::new();
+            b.push_sig(v, sig);
+            assert_eq!(b.as_str(), want);
+        }
+        let mut b: Buf<64> = Buf::new();
+        b.push_f32(f32::from_bits(1));
+        assert_eq!(b.as_str(), "1.401298e-45");
+    }
+
+    #[test]
+    fn div_rem_equals_64_bit_division() {
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut values = [0u64; 2_000];
+        for (i, v) in values.iter_mut().enumerate() {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            *v = match i % 4 {
+                0 => x,
+                1 => x >> (x % 64),
+                2 => (x % 3) << 32 | (x >> 32),
+                _ => [0, 1, u32::MAX as u64, 1 << 32, u64::MAX, u64::MAX - 1][i / 4 % 6],
+            };
+        }
+        for &n in &values {
+            for d in [
+                1u32,
+                2,
+                3,
+                7,
+                10,
+                1000,
+                65_535,
+                65_536,
+                999_999_937,
+                1 << 30,
+                i32::MAX as u32,
+            ] {
+                let (q, r) = div_rem(n, d);
+                assert_eq!((q, r as u64), (n / d as u64, n % d as u64), "{n} / {d}");
+            }
         }
     }
 }

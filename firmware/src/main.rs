@@ -348,7 +348,8 @@ mod app {
                 };
                 match frame::encode(&msg, &mut bytes.buf) {
                     Ok(n) => {
-                        for &b in &bytes.buf[..n] {
+                        // `take`, not `[..n]`: no panic path (n <= MAX_FRAME_LEN anyway).
+                        for &b in bytes.buf.iter().take(n) {
                             // The HAL's USART write cannot fail other than by `WouldBlock`.
                             let _ = nb::block!(hil_tx.write(b));
                         }
