@@ -72,6 +72,9 @@ impl RigState {
 pub struct Rig {
     plant: Plant,
     effects: Effects,
+    /// No effect acts on the plant's equations (none, or only `sensor_delay`):
+    /// [`Rig::step`] is [`Plant::step`]. Decided once, not per step.
+    plant_only: bool,
 }
 
 /// Why effects cannot be combined with a plant.
@@ -100,7 +103,16 @@ impl Rig {
                 plant.hose_model().name()
             )));
         }
-        Ok(Self { plant, effects })
+        let plant_only = Effects {
+            sensor_delay: None,
+            ..effects
+        }
+        .is_none();
+        Ok(Self {
+            plant,
+            effects,
+            plant_only,
+        })
     }
 
     /// The nominal plant.
@@ -238,7 +250,7 @@ impl Rig {
 
     /// One RK4 step with inputs held (plant.md 4.2), software limit first.
     pub fn step(&self, s: &mut RigState, v_cmd_mps: f64, ft_n: f64, dt_s: f64) {
-        if self.effects.is_none() || self.effects.active() == [effects::EffectKind::SensorDelay] {
+        if self.plant_only {
             self.plant.step(&mut s.x, v_cmd_mps, ft_n, dt_s);
             return;
         }
