@@ -9,7 +9,7 @@ use std::path::Path;
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
 use crate::config::{ConfigFile, ScenarioFile};
-use crate::metrics::{self, Kind, Metrics, Point};
+use crate::metrics::{self, Kind, Metrics};
 use crate::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::runlog::RunLog;
 use crate::scenario::{Command, Scenario, Signal};
@@ -166,15 +166,7 @@ pub fn log_meta(spec: &RunSpec) -> Vec<(&'static str, String)> {
 
 /// Section 8 metrics of a trace, choosing the metric set from its scenario.
 pub fn trace_metrics(trace: &Trace, scenario: &Scenario) -> Metrics {
-    let points: Vec<Point> = trace
-        .rows
-        .iter()
-        .map(|r| Point {
-            t_s: r.t_s,
-            ref_m: r.ref_m,
-            xo_m: r.meas.xo_m,
-        })
-        .collect();
+    let points = trace.points(false);
     let constant_ref = matches!(scenario.command(), Command::Reference(Signal::Constant(_)));
     let kind = if constant_ref {
         Kind::Step

@@ -70,6 +70,21 @@ pub struct Trace {
     pub rows: Vec<Row>,
 }
 
+impl Trace {
+    /// The run as metric points (plant.md section 8): the measured Xo, or the
+    /// true Xo when `truth` is set.
+    pub fn points(&self, truth: bool) -> Vec<crate::metrics::Point> {
+        self.rows
+            .iter()
+            .map(|r| crate::metrics::Point {
+                t_s: r.t_s,
+                ref_m: r.ref_m,
+                xo_m: if truth { r.truth.xo_m } else { r.meas.xo_m },
+            })
+            .collect()
+    }
+}
+
 /// What a per-tick observer sees.
 pub struct Tick<'a> {
     /// Base tick index.

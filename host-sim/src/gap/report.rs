@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::diagnose::{Details, Diagnosis, Run, BLOCK};
+use super::diagnose::{Candidate, Details, Diagnosis, Run, BLOCK};
 use super::replay::{measured, Replay, CHANNELS};
 use crate::plot::{self, Panel, Series};
 
@@ -51,18 +51,15 @@ fn residual_figure(
 }
 
 fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), String> {
-    let fit: Vec<(f64, f64)> = d
-        .candidates
-        .iter()
-        .enumerate()
-        .map(|(i, c)| ((i + 1) as f64, c.fit_shrink.max(-1.0) * 100.0))
-        .collect();
-    let check: Vec<(f64, f64)> = d
-        .candidates
-        .iter()
-        .enumerate()
-        .map(|(i, c)| ((i + 1) as f64, c.check_shrink.max(-1.0) * 100.0))
-        .collect();
+    let shrinks = |pick: fn(&Candidate) -> f64| -> Vec<(f64, f64)> {
+        d.candidates
+            .iter()
+            .enumerate()
+            .map(|(i, c)| ((i + 1) as f64, pick(c).max(-1.0) * 100.0))
+            .collect()
+    };
+    let fit = shrinks(|c| c.fit_shrink);
+    let check = shrinks(|c| c.check_shrink);
     let panel = Panel::new(
         "candidate effects, ranked (x = rank in the table)",
         "rank",

@@ -10,7 +10,7 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use dca_core::params::PlantParams;
 use rayon::prelude::*;
 
-use crate::metrics::{self, Kind, Point};
+use crate::metrics::{self, Kind};
 use crate::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::scenario::Scenario;
 use crate::sensors::SensorMode;
@@ -67,15 +67,7 @@ fn stepload_defaults() -> RunSpec {
 
 /// Load deviations of a `stepload` trace (true Xo against the reference).
 pub fn load_deviation(hose: &str, dt_s: f64, trace: &Trace) -> LoadDeviation {
-    let pts: Vec<Point> = trace
-        .rows
-        .iter()
-        .map(|r| Point {
-            t_s: r.t_s,
-            ref_m: r.ref_m,
-            xo_m: r.truth.xo_m,
-        })
-        .collect();
+    let pts = trace.points(true);
     let m = metrics::compute(&pts, Kind::Step, &[4.0, 7.0]);
     LoadDeviation {
         hose: hose.to_string(),
