@@ -7,13 +7,13 @@
 //!
 //! | identifier | model | parameters |
 //! |---|---|---|
-//! | `leakage` | internal leakage line 1 -> line 2 across the pistons, Q = G (P1 - P2) | `g_m3pspa` (typ. 1e-13: 0.2 cm^3/s at 2 MPa) |
+//! | `leakage` | internal leakage line 1 -> line 2 across the pistons, Q = G dP ((abs(dP) + 10 kPa) / 1 MPa)^(n - 1), dP = P1 - P2: laminar (n = 1) to orifice-like (n = 0.5) | `g_m3pspa` (conductance at 1 MPa, typ. 1e-13: 0.2 cm^3/s at 2 MPa), `exponent` (typ. 1) |
 //! | `friction` | seal friction on the actuating piston, Coulomb + Stribeck, smoothed: F = (Fc + (Fs - Fc) exp(-(v/vs)^2)) tanh(v/v_eps) | `coulomb_n` (typ. 30), `static_n` (typ. 45), `stribeck_mps` (typ. 2e-3); v_eps = 1e-4 m/s |
-//! | `backlash` | play between the motor (encoder, Xi) and the power piston: the piston follows only when the play is taken up | `play_m` (typ. 50e-6) |
+//! | `backlash` | play and axial compliance between the motor (encoder, Xi) and the power piston, which carries the hydraulic force F = AP1 P1 - AP2 P2: Xp = Xi - (play/2) tanh(F / 10 N) - F / k (a massless piston: it crosses the play where F changes sign and floats in it while F is near 0) | `play_m` (typ. 50e-6), `stiffness_npm` (typ. 2e7) |
 //! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
-//! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` |
-//! | `motor_limit` | servo acceleration limit and a linear torque-speed line: v <= v_max (1 - F_load / F_stall) when the hydraulic force on the power piston opposes the motion | `accel_max_mps2` (typ. 2), `force_stall_n` (typ. 1500) |
-//! | `hose_hysteresis` | rate-independent wall hysteresis: a play operator of half-width r on each line pressure adds the compliance c while engaged | `c_m3pp` (typ. 2e-13), `half_width_pa` (typ. 1e5) |
+//! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
+//! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
+//! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
 //!
 //! With every effect off the plant is exactly the nominal model of plant.md.
@@ -24,9 +24,21 @@ use serde::Deserialize;
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Leakage {
-    /// Conductance from line 1 to line 2, m^3/(s Pa).
+    /// Conductance from line 1 to line 2 at a 1 MPa difference, m^3/(s Pa).
     pub g_m3pspa: f64,
+    /// Flow exponent: 1 laminar (Q proportional to dP), 0.5 orifice-like.
+    #[serde(default = "one")]
+    pub exponent: f64,
 }
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Reference pressure difference of the leakage conductance, Pa.
+pub const LEAK_P_REF_PA: f64 = 1e6;
+/// Pressure difference below which the leakage stays laminar, Pa.
+pub const LEAK_P_SMOOTH_PA: f64 = 1e4;
 
 /// Seal friction on the actuating piston beyond the viscous term.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
@@ -54,7 +66,17 @@ pub const FRICTION_SMOOTH_MPS: f64 = 1e-4;
 pub struct Backlash {
     /// Total play, m.
     pub play_m: f64,
+    /// Axial stiffness of the screw, nut and coupling, N/m.
+    #[serde(default = "default_stiffness")]
+    pub stiffness_npm: f64,
 }
+
+fn default_stiffness() -> f64 {
+    2e7
+}
+
+/// Force over which the piston crosses from one flank of the play to the other, N.
+pub const BACKLASH_FLANK_N: f64 = 10.0;
 
 /// Entrained air.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
@@ -90,20 +112,30 @@ pub struct SensorDelay {
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MotorLimit {
-    /// Largest acceleration of the ball screw, m/s^2.
-    pub accel_max_mps2: f64,
-    /// Axial force at which the speed falls to zero, N.
-    pub force_stall_n: f64,
+    /// Largest axial force of the drive on the screw, N.
+    pub force_max_n: f64,
+    /// Motor and screw inertia reflected to the screw axis, kg.
+    pub mass_eq_kg: f64,
+    /// Highest speed the drive reaches, m/s.
+    #[serde(default = "default_speed_max")]
+    pub speed_max_mps: f64,
+}
+
+fn default_speed_max() -> f64 {
+    dca_core::params::PlantParams::NOMINAL.v_max_mps
 }
 
 /// Rate-independent hose-wall hysteresis.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HoseHysteresis {
-    /// Compliance of the hysteretic element, m^3/Pa.
+    /// Compliance added while the play is engaged, m^3/Pa.
     pub c_m3pp: f64,
-    /// Half width of the play in pressure, Pa.
-    pub half_width_pa: f64,
+    /// Share of the hose wall compliance held while the play is not engaged (0 to 1).
+    #[serde(default)]
+    pub stuck_share: f64,
+    /// Pressure change after a reversal over which the wall yields, Pa.
+    pub yield_pa: f64,
 }
 
 /// Accumulator gas temperature relaxation.
@@ -229,25 +261,34 @@ impl EffectKind {
     }
 }
 
-const LEAKAGE_PARAMS: &[ParamSpec] = &[p("g_m3pspa", 1e-13, 1e-16, 1e-11)];
+const LEAKAGE_PARAMS: &[ParamSpec] = &[
+    p("g_m3pspa", 1e-13, 1e-16, 1e-11),
+    p("exponent", 1.0, 0.5, 1.0),
+];
 const FRICTION_PARAMS: &[ParamSpec] = &[
     p("coulomb_n", 30.0, 0.0, 500.0),
     p("static_n", 45.0, 0.0, 800.0),
     p("stribeck_mps", 2e-3, 1e-4, 5e-2),
 ];
-const BACKLASH_PARAMS: &[ParamSpec] = &[p("play_m", 50e-6, 0.0, 2e-3)];
+const BACKLASH_PARAMS: &[ParamSpec] = &[
+    p("play_m", 50e-6, 0.0, 2e-3),
+    p("stiffness_npm", 2e7, 1e6, 1e10),
+];
 const AIR_PARAMS: &[ParamSpec] = &[p("fraction", 0.005, 0.0, 0.1)];
 const SENSOR_DELAY_PARAMS: &[ParamSpec] = &[
     p("xo_delay_s", 3e-3, 0.0, 0.1),
     p("xo_tau_s", 2e-3, 0.0, 0.1),
+    p("p_tau_s", 1e-3, 0.0, 0.1),
 ];
 const MOTOR_LIMIT_PARAMS: &[ParamSpec] = &[
-    p("accel_max_mps2", 2.0, 0.05, 100.0),
-    p("force_stall_n", 1500.0, 100.0, 50_000.0),
+    p("force_max_n", 2000.0, 50.0, 1e5),
+    p("mass_eq_kg", 200.0, 5.0, 1e5),
+    p("speed_max_mps", 0.1, 0.005, 0.1),
 ];
 const HOSE_HYSTERESIS_PARAMS: &[ParamSpec] = &[
     p("c_m3pp", 2e-13, 0.0, 5e-12),
-    p("half_width_pa", 1e5, 1e3, 2e6),
+    p("stuck_share", 0.0, 0.0, 1.0),
+    p("yield_pa", 1e5, 1e3, 2e6),
 ];
 const ACCUMULATOR_THERMAL_PARAMS: &[ParamSpec] = &[p("tau_s", 5.0, 0.05, 1000.0)];
 
@@ -280,24 +321,30 @@ impl Effects {
     /// The parameters of effect `k` if active, in [`EffectKind::params`] order.
     pub fn get(&self, k: EffectKind) -> Option<Vec<f64>> {
         Some(match k {
-            EffectKind::Leakage => vec![self.leakage?.g_m3pspa],
+            EffectKind::Leakage => {
+                let l = self.leakage?;
+                vec![l.g_m3pspa, l.exponent]
+            }
             EffectKind::Friction => {
                 let f = self.friction?;
                 vec![f.coulomb_n, f.static_n, f.stribeck_mps]
             }
-            EffectKind::Backlash => vec![self.backlash?.play_m],
+            EffectKind::Backlash => {
+                let b = self.backlash?;
+                vec![b.play_m, b.stiffness_npm]
+            }
             EffectKind::Air => vec![self.air?.fraction],
             EffectKind::SensorDelay => {
                 let s = self.sensor_delay?;
-                vec![s.xo_delay_s, s.xo_tau_s]
+                vec![s.xo_delay_s, s.xo_tau_s, s.p_tau_s]
             }
             EffectKind::MotorLimit => {
                 let m = self.motor_limit?;
-                vec![m.accel_max_mps2, m.force_stall_n]
+                vec![m.force_max_n, m.mass_eq_kg, m.speed_max_mps]
             }
             EffectKind::HoseHysteresis => {
                 let h = self.hose_hysteresis?;
-                vec![h.c_m3pp, h.half_width_pa]
+                vec![h.c_m3pp, h.stuck_share, h.yield_pa]
             }
             EffectKind::AccumulatorThermal => vec![self.accumulator_thermal?.tau_s],
         })
@@ -322,7 +369,12 @@ impl Effects {
         let specs = k.params();
         let at = |i: usize| v.get(i).copied().unwrap_or(specs[i].typical);
         match k {
-            EffectKind::Leakage => self.leakage = Some(Leakage { g_m3pspa: at(0) }),
+            EffectKind::Leakage => {
+                self.leakage = Some(Leakage {
+                    g_m3pspa: at(0),
+                    exponent: at(1),
+                })
+            }
             EffectKind::Friction => {
                 self.friction = Some(Friction {
                     coulomb_n: at(0),
@@ -330,7 +382,12 @@ impl Effects {
                     stribeck_mps: at(2),
                 })
             }
-            EffectKind::Backlash => self.backlash = Some(Backlash { play_m: at(0) }),
+            EffectKind::Backlash => {
+                self.backlash = Some(Backlash {
+                    play_m: at(0),
+                    stiffness_npm: at(1),
+                })
+            }
             EffectKind::Air => {
                 self.air = Some(Air {
                     fraction: at(0),
@@ -338,23 +395,24 @@ impl Effects {
                 })
             }
             EffectKind::SensorDelay => {
-                let p_tau_s = self.sensor_delay.map(|s| s.p_tau_s).unwrap_or(0.0);
                 self.sensor_delay = Some(SensorDelay {
                     xo_delay_s: at(0),
                     xo_tau_s: at(1),
-                    p_tau_s,
+                    p_tau_s: at(2),
                 })
             }
             EffectKind::MotorLimit => {
                 self.motor_limit = Some(MotorLimit {
-                    accel_max_mps2: at(0),
-                    force_stall_n: at(1),
+                    force_max_n: at(0),
+                    mass_eq_kg: at(1),
+                    speed_max_mps: at(2),
                 })
             }
             EffectKind::HoseHysteresis => {
                 self.hose_hysteresis = Some(HoseHysteresis {
                     c_m3pp: at(0),
-                    half_width_pa: at(1),
+                    stuck_share: at(1),
+                    yield_pa: at(2),
                 })
             }
             EffectKind::AccumulatorThermal => {
@@ -421,9 +479,27 @@ impl Effects {
             }
         }
         if let Some(m) = self.motor_limit {
-            if m.accel_max_mps2 <= 0.0 || m.force_stall_n <= 0.0 {
+            if m.force_max_n <= 0.0 || m.mass_eq_kg <= 0.0 || m.speed_max_mps <= 0.0 {
                 return Err(
-                    "effect motor_limit: accel_max_mps2 and force_stall_n must be > 0".into(),
+                    "effect motor_limit: force_max_n, mass_eq_kg and speed_max_mps must be > 0"
+                        .into(),
+                );
+            }
+        }
+        if let Some(l) = self.leakage {
+            if !(l.exponent > 0.0 && l.exponent <= 2.0) {
+                return Err("effect leakage: exponent must be in (0, 2]".into());
+            }
+        }
+        if let Some(b) = self.backlash {
+            if b.stiffness_npm <= 0.0 {
+                return Err("effect backlash: stiffness_npm must be > 0".into());
+            }
+        }
+        if let Some(h) = self.hose_hysteresis {
+            if h.stuck_share > 1.0 || h.yield_pa <= 0.0 {
+                return Err(
+                    "effect hose_hysteresis: stuck_share must be <= 1 and yield_pa > 0".into(),
                 );
             }
         }
@@ -438,7 +514,12 @@ impl Effects {
 
 /// Leakage flow from line 1 to line 2, m^3/s.
 pub fn leak_flow_m3ps(l: &Leakage, p1_pa: f64, p2_pa: f64) -> f64 {
-    l.g_m3pspa * (p1_pa - p2_pa)
+    let dp = p1_pa - p2_pa;
+    if l.exponent == 1.0 {
+        return l.g_m3pspa * dp;
+    }
+    let r = (dp.abs() + LEAK_P_SMOOTH_PA) / LEAK_P_REF_PA;
+    l.g_m3pspa * dp * libm::pow(r, l.exponent - 1.0)
 }
 
 /// Friction force opposing the actuating piston's velocity, N (sign of -v).
@@ -456,30 +537,44 @@ pub fn compressibility_ppa(a: &Air, beta_e_pa: f64, p_pa: f64, p_atm_pa: f64) ->
     1.0 / beta_e_pa + a.fraction / (a.kappa * p_abs) * libm::pow(p_atm_pa / p_abs, 1.0 / a.kappa)
 }
 
-/// Rate of a play (backlash) operator's output `y` driven by `x` moving at
-/// `dx`: it follows when the play of total width `width` is taken up in the
-/// direction of motion, and stays otherwise.
-pub fn play_rate(x: f64, y: f64, dx: f64, width: f64) -> f64 {
-    let half = 0.5 * width;
-    if (x - y >= half && dx > 0.0) || (x - y <= -half && dx < 0.0) {
-        dx
+/// Engagement of the hose hysteresis (0 just after a pressure reversal, 1
+/// once the wall has yielded) for the hysteretic pressure `z_pa` and the
+/// direction of the line pressure's rate `dp`.
+pub fn hysteresis_engagement(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
+    let sigma = if dp > 0.0 {
+        1.0
+    } else if dp < 0.0 {
+        -1.0
     } else {
         0.0
-    }
+    };
+    (0.5 * (1.0 + sigma * z_pa / h.yield_pa)).clamp(0.0, 1.0)
 }
 
-/// Servo speed target under the motor limit: the commanded speed `vc`, cut
-/// along the torque-speed line when the hydraulic force `f_load_n` (positive
-/// opposing extension) opposes the motion.
-pub fn motor_speed_target(m: &MotorLimit, vc_mps: f64, f_load_n: f64) -> f64 {
-    let opposing = if vc_mps > 0.0 { f_load_n } else { -f_load_n };
-    let scale = (1.0 - opposing.max(0.0) / m.force_stall_n).max(0.0);
-    vc_mps * scale
+/// Rate of the hysteretic pressure: dz = dP - abs(dP) z / r.
+pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
+    dp - dp.abs() * z_pa / h.yield_pa
 }
 
-/// Servo acceleration under the motor limit.
-pub fn motor_accel(m: &MotorLimit, a_mps2: f64) -> f64 {
-    a_mps2.clamp(-m.accel_max_mps2, m.accel_max_mps2)
+/// Servo acceleration under the motor limit: the speed loop asks for
+/// `a_mps2` towards its target against the hydraulic force `f_load_n` on the
+/// power piston (positive opposing extension); the drive's force is clamped.
+pub fn motor_accel(m: &MotorLimit, a_mps2: f64, f_load_n: f64) -> f64 {
+    let f = (m.mass_eq_kg * a_mps2 + f_load_n).clamp(-m.force_max_n, m.force_max_n);
+    (f - f_load_n) / m.mass_eq_kg
+}
+
+/// Offset of the motor ahead of the power piston under the backlash when
+/// the hydraulic force `f_load_n` (positive opposing extension) holds the
+/// piston against a flank, m: (play / 2) tanh(F / F_flank) + F / k.
+pub fn backlash_offset_m(b: &Backlash, f_load_n: f64) -> f64 {
+    0.5 * b.play_m * libm::tanh(f_load_n / BACKLASH_FLANK_N) + f_load_n / b.stiffness_npm
+}
+
+/// Derivative of [`backlash_offset_m`] with respect to the force, m/N.
+pub fn backlash_compliance_mpn(b: &Backlash, f_load_n: f64) -> f64 {
+    let t = libm::tanh(f_load_n / BACKLASH_FLANK_N);
+    0.5 * b.play_m * (1.0 - t * t) / BACKLASH_FLANK_N + 1.0 / b.stiffness_npm
 }
 
 #[cfg(test)]
@@ -492,7 +587,7 @@ mod tests {
         assert!(e.is_none());
         e.parse_arg("leakage:g_m3pspa=2e-13").unwrap();
         e.parse_arg("friction").unwrap();
-        assert_eq!(e.get(EffectKind::Leakage), Some(vec![2e-13]));
+        assert_eq!(e.get(EffectKind::Leakage), Some(vec![2e-13, 1.0]));
         assert_eq!(e.get(EffectKind::Friction).unwrap()[0], 30.0);
         assert_eq!(e.active(), vec![EffectKind::Leakage, EffectKind::Friction]);
         e.set(EffectKind::Leakage, None);
@@ -502,7 +597,10 @@ mod tests {
             "leakage:g=1",
             "leakage:g_m3pspa=x",
             "air:fraction=-1",
-            "motor_limit:force_stall_n=0",
+            "motor_limit:mass_eq_kg=0",
+            "leakage:exponent=0",
+            "backlash:stiffness_npm=0",
+            "hose_hysteresis:stuck_share=1.5",
         ] {
             let mut e = Effects::NONE;
             assert!(e.parse_arg(bad).is_err(), "{bad}");
@@ -535,6 +633,52 @@ mod tests {
             );
             e.validate().unwrap();
         }
+    }
+
+    #[test]
+    fn leakage_exponent_bends_the_flow_law() {
+        let lam = Leakage {
+            g_m3pspa: 1e-13,
+            exponent: 1.0,
+        };
+        let orifice = Leakage {
+            exponent: 0.5,
+            ..lam
+        };
+        // Both give about G x 1 MPa at 1 MPa; the orifice law grows as sqrt(dP).
+        let q = |l: &Leakage, dp: f64| leak_flow_m3ps(l, dp, 0.0);
+        assert_eq!(q(&lam, 4e6), 1e-13 * 4e6);
+        assert!((q(&orifice, 1e6) / 1e-7 - 1.0).abs() < 0.01);
+        assert!((q(&orifice, 4e6) / q(&orifice, 1e6) - 2.0).abs() < 0.01);
+        assert_eq!(q(&orifice, -4e6), -q(&orifice, 4e6));
+        assert_eq!(q(&orifice, 0.0), 0.0);
+    }
+
+    #[test]
+    fn motor_force_limit_depends_on_the_load() {
+        let m = MotorLimit {
+            force_max_n: 500.0,
+            mass_eq_kg: 100.0,
+            speed_max_mps: 0.1,
+        };
+        // Free: +-5 m/s^2. Against 300 N: 2 m/s^2 out, 8 m/s^2 back.
+        assert_eq!(motor_accel(&m, 50.0, 0.0), 5.0);
+        assert_eq!(motor_accel(&m, 1.0, 0.0), 1.0);
+        assert!((motor_accel(&m, 50.0, 300.0) - 2.0).abs() < 1e-12);
+        assert!((motor_accel(&m, -50.0, 300.0) + 8.0).abs() < 1e-12);
+        // Beyond the stall force the screw is pushed back.
+        assert!(motor_accel(&m, 0.0, 800.0) < 0.0);
+    }
+
+    #[test]
+    fn backlash_flank_follows_the_force() {
+        let b = Backlash {
+            play_m: 100e-6,
+            stiffness_npm: 1e7,
+        };
+        assert_eq!(backlash_offset_m(&b, 0.0), 0.0);
+        assert!((backlash_offset_m(&b, 500.0) - (50e-6 + 50e-6)).abs() < 1e-9);
+        assert!((backlash_offset_m(&b, -500.0) + 100e-6).abs() < 1e-9);
     }
 
     #[test]
@@ -571,22 +715,36 @@ mod tests {
     }
 
     #[test]
-    fn play_operator_follows_only_beyond_the_play() {
-        assert_eq!(play_rate(0.0, 0.0, 1.0, 1e-4), 0.0);
-        assert_eq!(play_rate(5e-5, 0.0, 1.0, 1e-4), 1.0);
-        assert_eq!(play_rate(5e-5, 0.0, -1.0, 1e-4), 0.0);
-        assert_eq!(play_rate(-5e-5, 0.0, -1.0, 1e-4), -1.0);
+    fn hysteresis_engages_after_the_pressure_moves_on() {
+        let h = HoseHysteresis {
+            c_m3pp: 1e-13,
+            stuck_share: 0.5,
+            yield_pa: 1e5,
+        };
+        // Rising pressure from z = 0: half engaged, then saturating towards 1.
+        let mut z = 0.0;
+        assert_eq!(hysteresis_engagement(&h, z, 1.0), 0.5);
+        for _ in 0..1000 {
+            z += hysteresis_rate(&h, z, 1e3) * 1.0e-3 * 1e3;
+        }
+        assert!(z > 0.99e5 && z <= 1e5, "{z}");
+        assert!(hysteresis_engagement(&h, z, 1.0) > 0.99);
+        // Right after the reversal: not engaged.
+        assert!(hysteresis_engagement(&h, z, -1.0) < 0.01);
+        assert_eq!(hysteresis_rate(&h, 1e5, 5.0), 0.0);
+        assert_eq!(hysteresis_rate(&h, 1e5, -5.0), -10.0);
     }
 
     #[test]
-    fn motor_limit_cuts_speed_against_load_only() {
-        let m = MotorLimit {
-            accel_max_mps2: 2.0,
-            force_stall_n: 1000.0,
+    fn backlash_compliance_is_the_offset_slope() {
+        let b = Backlash {
+            play_m: 100e-6,
+            stiffness_npm: 1e7,
         };
-        assert_eq!(motor_speed_target(&m, 0.1, 500.0), 0.05);
-        assert_eq!(motor_speed_target(&m, -0.1, 500.0), -0.1);
-        assert_eq!(motor_speed_target(&m, 0.1, 2000.0), 0.0);
-        assert_eq!(motor_accel(&m, 10.0), 2.0);
+        for f in [-300.0, -5.0, 0.0, 3.0, 40.0, 800.0] {
+            let num = (backlash_offset_m(&b, f + 1e-4) - backlash_offset_m(&b, f - 1e-4)) / 2e-4;
+            let g = backlash_compliance_mpn(&b, f);
+            assert!((num - g).abs() <= 1e-6 * g, "{f}: {num:e} vs {g:e}");
+        }
     }
 }

@@ -4,14 +4,18 @@
 //!
 //! * `leakage`: Q1 -= Ql, Q2 += Ql with Ql = G (P1 - P2);
 //! * `friction`: the Stribeck force is added to the actuating piston's forces;
-//! * `backlash`: the power piston (position xp, an extra state) follows the
-//!   motor (the encoder's Xi) only when the play is taken up; the line volumes
-//!   and flows use xp and its velocity;
+//! * `backlash`: the power piston (position xp, an extra state) sits behind
+//!   the motor (the encoder's Xi) by the play's flank the hydraulic force
+//!   pushes it against plus the screw's deflection under that force, settling
+//!   there with a 1 ms time constant; the line volumes and flows use xp and
+//!   its velocity;
 //! * `air`: the oil compressibility V/beta_e of each line becomes V/beta_eff(P);
-//! * `motor_limit`: the servo's speed target is cut along the torque-speed line
-//!   by the hydraulic force on the power piston, and its acceleration limited;
+//! * `motor_limit`: the servo's speed target is capped, and its force (the
+//!   speed loop's demand on the reflected mass plus the hydraulic force on the
+//!   power piston) is clamped;
 //! * `hose_hysteresis`: a play operator on each line pressure (extra states h1,
-//!   h2) adds its compliance to the line's capacitance while engaged;
+//!   h2) adds its compliance to the line's capacitance while engaged, and
+//!   holds a share of the hose wall's compliance while not;
 //! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
 //!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0);
 //! * `sensor_delay` acts on the readings, not here (see [`crate::sensors`]).
@@ -21,7 +25,7 @@
 //! defined for the `nonlinear`, `linear` and `rigid` hoses only.
 
 use crate::effects::{self, Effects, T_AMBIENT_K};
-use crate::plant::{HoseModel, Plant, State, N_STATES};
+use crate::plant::{HoseModel, Plant, PressureRates, State, N_STATES};
 
 /// Number of extra states the effects carry.
 pub const N_EXT: usize = 4;
@@ -31,7 +35,8 @@ pub const N_EXT: usize = 4;
 pub struct Ext {
     /// Power piston position behind the play (`backlash`), m.
     pub xp_m: f64,
-    /// Play-operator outputs of the line pressures (`hose_hysteresis`), Pa.
+    /// Hysteretic pressures of the hose walls (`hose_hysteresis`), within
+    /// +-yield_pa, Pa.
     pub h_pa: [f64; 2],
     /// Accumulator gas temperature (`accumulator_thermal`), K.
     pub t_gas_k: f64,
@@ -127,19 +132,54 @@ impl Rig {
 
     /// Rest state (plant.md 4.1) with the effects' states at rest.
     pub fn initial_state(&self, ft0_n: f64) -> RigState {
-        let x = self.plant.initial_state(ft0_n);
+        self.rest_state(ft0_n, 0.0, 0.0)
+    }
+
+    /// Rest state under the load `ft0_n` with the motor (encoder) at `xi_m`
+    /// and the actuating piston at `xo_m`; behind a backlash the power piston
+    /// rests on the flank the hydraulic force holds it against.
+    pub fn rest_state(&self, ft0_n: f64, xi_m: f64, xo_m: f64) -> RigState {
+        let mut x = self.plant.initial_state(ft0_n);
+        x.xi_m = xi_m;
+        x.xo_m = xo_m;
+        let xp_m = match &self.effects.backlash {
+            Some(b) => xi_m - effects::backlash_offset_m(b, self.piston_force_n(&x)),
+            None => xi_m,
+        };
         RigState {
             x,
             ext: Ext {
-                xp_m: x.xi_m,
-                h_pa: [x.p1_pa, x.p2_pa],
+                xp_m,
+                h_pa: [0.0, 0.0],
                 t_gas_k: T_AMBIENT_K,
             },
         }
     }
 
-    /// Line capacitance V/beta + Ce(P) of the explicit hose models, m^3/Pa.
-    fn capacitance(&self, p_pa: f64, v_m3: f64) -> f64 {
+    /// Factor (at most 1) on the largest stable plant step: the fastest mode
+    /// (the actuating piston against the lines' hydraulic stiffness) scales
+    /// with the inverse of the line capacitance, which `hose_hysteresis`
+    /// lowers by its stuck share of the wall's part. Taken where that matters
+    /// most: zero pressure (the wall at its softest) and the smallest oil volume.
+    pub fn step_scale(&self) -> f64 {
+        let Some(h) = &self.effects.hose_hysteresis else {
+            return 1.0;
+        };
+        let p = self.plant.params();
+        let (v_min, _) = self.plant.line_volumes(p.x_max_m, p.x_min_m);
+        let (c_oil, c_wall) = self.capacitance(0.0, v_min);
+        ((c_oil + (1.0 - h.stuck_share) * c_wall) / (c_oil + c_wall)).clamp(0.01, 1.0)
+    }
+
+    /// Hydraulic force on the power piston, positive opposing extension, N.
+    fn piston_force_n(&self, x: &State) -> f64 {
+        let p = self.plant.params();
+        p.ap1_m2 * x.p1_pa - p.ap2_m2 * x.p2_pa
+    }
+
+    /// Line capacitance of the explicit hose models, m^3/Pa: the oil's
+    /// V/beta and the hose wall's Ce(P).
+    fn capacitance(&self, p_pa: f64, v_m3: f64) -> (f64, f64) {
         let p = self.plant.params();
         let h = &p.hose;
         let ce = match self.plant.hose_model() {
@@ -147,7 +187,7 @@ impl Rig {
             HoseModel::Linear => h.ce0_m3pp * h.stiffening(p.p_nom_pa),
             _ => 0.0,
         };
-        v_m3 / p.beta_e_pa + ce
+        (v_m3 / p.beta_e_pa, ce)
     }
 
     /// Right-hand side of the plant and of the effects' states.
@@ -163,75 +203,55 @@ impl Rig {
         // Servo (motor side): target, torque-speed cut, acceleration limit.
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
         let mut dvi = (vc - x.vi_mps) / p.tau_m_s;
-        // Power piston behind the play.
-        let (xp, vp) = match &e.backlash {
-            Some(b) => (
-                s.ext.xp_m,
-                effects::play_rate(x.xi_m, s.ext.xp_m, x.vi_mps, b.play_m),
-            ),
-            None => (x.xi_m, x.vi_mps),
-        };
+        let f_piston = self.piston_force_n(&x);
         if let Some(m) = &e.motor_limit {
-            let f_load = p.ap1_m2 * x.p1_pa - p.ap2_m2 * x.p2_pa;
-            let target = effects::motor_speed_target(m, vc, f_load);
-            dvi = effects::motor_accel(m, (target - x.vi_mps) / p.tau_m_s);
+            let target = vc.clamp(-m.speed_max_mps, m.speed_max_mps);
+            dvi = effects::motor_accel(m, (target - x.vi_mps) / p.tau_m_s, f_piston);
         }
-        let motor = (x.xi_m, x.vi_mps);
-        x.xi_m = xp;
-        x.vi_mps = vp;
         let mut fo = self.plant.forces_n(&x, ft_n);
         if let Some(f) = &e.friction {
             fo += effects::friction_force_n(f, x.vo_mps);
         }
-        let flows = self.plant.flows(&x);
-        let (mut q1, mut q2, mut qa) = (flows.q1_m3ps, flows.q2_m3ps, flows.qa_m3ps);
+        let motor = (x.xi_m, x.vi_mps);
+        // The lines see the power piston: behind the backlash at ext.xp_m.
+        if e.backlash.is_some() {
+            x.xi_m = s.ext.xp_m;
+        }
+        // Accumulator flow (with the gas temperature) and leakage depend on
+        // the state only; the piston's velocity enters through Q1 and Q2.
+        let qa_nom = self.plant.flows(&x).qa_m3ps;
+        let mut qa = qa_nom;
         let mut dt_gas = 0.0;
         if let Some(th) = &e.accumulator_thermal {
             // Gas law with temperature: P_abs = P0_abs (V0 / Vg) (T / T0).
             let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
             let pacc =
                 p_abs0 * (p.v_gas0_m3 / x.vg_m3) * (s.ext.t_gas_k / T_AMBIENT_K) - p.p_atm_pa;
-            let qa_t = p.g_acc_m3pspa * (pacc - x.p2_pa);
-            q2 += qa_t - qa;
-            qa = qa_t;
+            qa = p.g_acc_m3pspa * (pacc - x.p2_pa);
             // Adiabatic compression heats the gas (dVg = qa), exchange relaxes it.
             dt_gas = -(p.n_poly - 1.0) * s.ext.t_gas_k * qa / x.vg_m3
                 + (T_AMBIENT_K - s.ext.t_gas_k) / th.tau_s;
         }
-        if let Some(l) = &e.leakage {
-            let ql = effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa);
-            q1 -= ql;
-            q2 += ql;
-        }
-        let mut r = self.plant.pressure_rates(&x, q1, q2);
-        let mut dh = [0.0; 2];
-        if e.air.is_some() || e.hose_hysteresis.is_some() {
-            let (v1, v2) = self.plant.line_volumes(x.xi_m, x.xo_m);
-            let lines = [(x.p1_pa, v1), (x.p2_pa, v2)];
-            for (j, (pj, vj)) in lines.into_iter().enumerate() {
-                let c_nom = self.capacitance(pj, vj);
-                let mut c = c_nom;
-                if let Some(a) = &e.air {
-                    c += vj
-                        * (effects::compressibility_ppa(a, p.beta_e_pa, pj, p.p_atm_pa)
-                            - 1.0 / p.beta_e_pa);
-                }
-                let dp_nom = if j == 0 { r.dp1_paps } else { r.dp2_paps };
-                let mut dp = dp_nom * c_nom / c;
-                if let Some(h) = &e.hose_hysteresis {
-                    // Engaged in the direction the pressure moves: extra compliance.
-                    if effects::play_rate(pj, s.ext.h_pa[j], dp, 2.0 * h.half_width_pa) != 0.0 {
-                        dp = dp_nom * c_nom / (c + h.c_m3pp);
-                        dh[j] = dp;
-                    }
-                }
-                if j == 0 {
-                    r.dp1_paps = dp;
-                } else {
-                    r.dp2_paps = dp;
-                }
+        let ql = e
+            .leakage
+            .as_ref()
+            .map_or(0.0, |l| effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa));
+        let lines = |vp: f64| self.line_rates(s, &x, vp, qa - qa_nom, ql);
+        // Behind a backlash the piston sits where the coupling carries the
+        // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt
+        // is affine in vp (through Q1, Q2): solved exactly from two evaluations.
+        let (vp, (r, dh)) = match &e.backlash {
+            Some(b) => {
+                let g1 = effects::backlash_compliance_mpn(b, f_piston);
+                let df = |r: &PressureRates| p.ap1_m2 * r.dp1_paps - p.ap2_m2 * r.dp2_paps;
+                let dv = 1e-3;
+                let f0 = df(&lines(motor.1).0);
+                let slope = ((df(&lines(motor.1 + dv).0) - f0) / dv).max(0.0);
+                let vp = motor.1 - g1 * f0 / (1.0 + g1 * slope);
+                (vp, lines(vp))
             }
-        }
+            None => (motor.1, lines(motor.1)),
+        };
         let d = [
             motor.1,
             dvi,
@@ -246,6 +266,58 @@ impl Rig {
             qa,
         ];
         (d, [vp, dh[0], dh[1], dt_gas])
+    }
+
+    /// Pressure and hose-volume rates with the power piston (position in
+    /// `x.xi_m`) moving at `vp`, the accumulator flow changed by `dqa` and the
+    /// leakage `ql` from line 1 to line 2; and the rates of the hysteretic
+    /// pressures.
+    fn line_rates(
+        &self,
+        s: &RigState,
+        x: &State,
+        vp: f64,
+        dqa: f64,
+        ql: f64,
+    ) -> (PressureRates, [f64; 2]) {
+        let e = &self.effects;
+        let p = self.plant.params();
+        let mut xv = *x;
+        xv.vi_mps = vp;
+        let flows = self.plant.flows(&xv);
+        let q1 = flows.q1_m3ps - ql;
+        let q2 = flows.q2_m3ps + dqa + ql;
+        let mut r = self.plant.pressure_rates(&xv, q1, q2);
+        let mut dh = [0.0; 2];
+        if e.air.is_none() && e.hose_hysteresis.is_none() {
+            return (r, dh);
+        }
+        let (v1, v2) = self.plant.line_volumes(xv.xi_m, xv.xo_m);
+        for (j, (pj, vj)) in [(xv.p1_pa, v1), (xv.p2_pa, v2)].into_iter().enumerate() {
+            let (c_oil, c_wall) = self.capacitance(pj, vj);
+            let c_nom = c_oil + c_wall;
+            let mut c = c_nom;
+            if let Some(a) = &e.air {
+                c += vj
+                    * (effects::compressibility_ppa(a, p.beta_e_pa, pj, p.p_atm_pa)
+                        - 1.0 / p.beta_e_pa);
+            }
+            let dp_nom = if j == 0 { r.dp1_paps } else { r.dp2_paps };
+            let mut dp = dp_nom * c_nom / c;
+            if let Some(h) = &e.hose_hysteresis {
+                let z = s.ext.h_pa[j];
+                let engaged = effects::hysteresis_engagement(h, z, dp);
+                c += engaged * h.c_m3pp - (1.0 - engaged) * h.stuck_share * c_wall;
+                dp = dp_nom * c_nom / c;
+                dh[j] = effects::hysteresis_rate(h, z, dp);
+            }
+            if j == 0 {
+                r.dp1_paps = dp;
+            } else {
+                r.dp2_paps = dp;
+            }
+        }
+        (r, dh)
     }
 
     /// One RK4 step with inputs held (plant.md 4.2), software limit first.
@@ -277,7 +349,7 @@ impl Rig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::EffectKind;
+    use crate::effects::{self, EffectKind};
 
     fn rig(k: Option<(EffectKind, &[f64])>) -> Rig {
         let mut e = Effects::NONE;
@@ -345,20 +417,38 @@ mod tests {
     }
 
     #[test]
-    fn backlash_delays_the_piston_behind_the_motor() {
-        let r = rig(Some((EffectKind::Backlash, &[200e-6])));
+    fn backlash_flank_follows_the_piston_force() {
+        let r = rig(Some((EffectKind::Backlash, &[200e-6, 1e7])));
+        let b = r.effects().backlash.unwrap();
+        // At rest the accumulator's pressure on the full bore pushes the
+        // piston out: it rests ahead of the motor, on the far flank.
         let mut s = r.initial_state(0.0);
-        for _ in 0..1000 {
-            r.step(&mut s, 0.02, 0.0, 1e-4);
+        let f0 = r.piston_force_n(&s.x);
+        assert!(f0 < -100.0, "{f0}");
+        let lead = s.ext.xp_m - s.x.xi_m;
+        assert!((lead - (100e-6 - f0 / 1e7)).abs() < 1e-7, "{lead:e}");
+        // At rest the state does not move.
+        let (_, de) = r.derivative(&s, 0.0, 0.0);
+        assert!(de[0].abs() < 1e-12, "{}", de[0]);
+        // 800 N on the load turns the force over: the piston crosses the play
+        // and lags the motor by the half play plus the deflection.
+        for _ in 0..5000 {
+            r.step(&mut s, 0.0, 800.0, 1e-4);
         }
-        // The piston lags the motor by the half play once it is taken up.
+        let f = r.piston_force_n(&s.x);
+        assert!(f > 100.0, "{f}");
         let lag = s.x.xi_m - s.ext.xp_m;
-        assert!((lag - 100e-6).abs() < 5e-6, "{lag:e}");
+        let want = effects::backlash_offset_m(&b, f);
+        assert!(
+            want > 100e-6 && (lag - want).abs() < 1e-6,
+            "{lag:e} vs {want:e}"
+        );
     }
 
     #[test]
     fn motor_limit_slows_the_servo_under_load() {
-        let r = rig(Some((EffectKind::MotorLimit, &[2.0, 1500.0])));
+        // 1000 N drive force against about 700 N of hydraulic force.
+        let r = rig(Some((EffectKind::MotorLimit, &[1000.0, 500.0, 0.1])));
         let mut s = r.initial_state(800.0);
         for _ in 0..2000 {
             r.step(&mut s, 0.05, 800.0, 1e-4);
@@ -369,6 +459,13 @@ mod tests {
             free.step(&mut f, 0.05, 800.0, 1e-4);
         }
         assert!(s.x.xi_m < 0.8 * f.x.xi_m, "{} vs {}", s.x.xi_m, f.x.xi_m);
+        // The speed cap alone.
+        let capped = rig(Some((EffectKind::MotorLimit, &[1e5, 1e3, 0.02])));
+        let mut c = capped.initial_state(0.0);
+        for _ in 0..3000 {
+            capped.step(&mut c, 0.05, 0.0, 1e-4);
+        }
+        assert!((c.x.vi_mps - 0.02).abs() < 1e-6, "{}", c.x.vi_mps);
     }
 
     #[test]
@@ -377,7 +474,8 @@ mod tests {
         for (k, v) in [
             (EffectKind::Air, &[0.01][..]),
             (EffectKind::Friction, &[60.0, 90.0, 2e-3][..]),
-            (EffectKind::HoseHysteresis, &[1e-12, 1e5][..]),
+            (EffectKind::HoseHysteresis, &[1e-12, 0.0, 1e5][..]),
+            (EffectKind::HoseHysteresis, &[0.0, 1.0, 3e5][..]),
             (EffectKind::AccumulatorThermal, &[2.0][..]),
         ] {
             let with = run(&rig(Some((k, v))));
@@ -391,6 +489,43 @@ mod tests {
             assert!(diff > 1.0, "{}: {diff}", k.name());
             assert!(with.iter().all(|s| s.is_finite()), "{}", k.name());
         }
+    }
+
+    #[test]
+    fn step_scale_keeps_a_stiffened_line_stable() {
+        let r = rig(Some((EffectKind::HoseHysteresis, &[0.0, 1.0, 3e5])));
+        let scale = r.step_scale();
+        assert!(scale < 0.5 && scale > 0.05, "{scale}");
+        // A 1 s load cycle at the replay's step (5e-4 s) times the scale, and
+        // at a 20 times finer step: the same trajectory.
+        let sim = |n: usize| {
+            let h = 1.0 / n as f64;
+            let mut s = r.initial_state(0.0);
+            for k in 0..n {
+                let t = k as f64 * h;
+                let ft = 400.0 + 300.0 * (2.0 * std::f64::consts::PI * 2.0 * t).sin();
+                let v = 0.03 * (2.0 * std::f64::consts::PI * t).cos();
+                r.step(&mut s, v, ft, h);
+            }
+            s
+        };
+        let n = (1.0 / (5e-4 * scale)).ceil() as usize;
+        let coarse = sim(n);
+        let fine = sim(20 * n);
+        assert!(coarse.is_finite());
+        // Within a fifth of the sensor noise (the engagement switches with the
+        // sign of dP/dt, and the inputs are held over each step).
+        assert!(
+            (coarse.x.xo_m - fine.x.xo_m).abs() < 2e-6,
+            "{coarse:?} {fine:?}"
+        );
+        assert!((coarse.x.p1_pa - fine.x.p1_pa).abs() < 1e3);
+        // Without the scale the same step diverges or is far off.
+        let unscaled = sim(2000);
+        assert!(
+            !unscaled.is_finite() || (unscaled.x.p1_pa - fine.x.p1_pa).abs() > 1e3,
+            "{unscaled:?}"
+        );
     }
 
     #[test]

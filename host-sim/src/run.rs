@@ -232,7 +232,9 @@ mod tests {
         assert!(spec.effects.friction.is_some());
         let meta = log_meta(&spec);
         assert!(
-            meta[0].1.starts_with("leakage:g_m3pspa=2e-13;friction:"),
+            meta[0]
+                .1
+                .starts_with("leakage:g_m3pspa=2e-13,exponent=1e0;friction:"),
             "{:?}",
             meta[0]
         );

@@ -1,1 +1,3 @@
 //! Cross-crate system tests live in `tests/tests/`.
+
+pub mod foreign;

@@ -6,7 +6,8 @@
 //! parameters), then refined by Nelder-Mead with the simplex clamped to the
 //! unit box.
 //! Evaluations are few (each is a replay of whole runs), so the budget is
-//! explicit.
+//! explicit, and each is told the value it must beat to matter (`stop`): an
+//! objective may stop early and return any value above it.
 
 /// Bounds of one parameter.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,9 +66,10 @@ pub struct FitResult {
 }
 
 /// Minimise `f` within `bounds` from `x0`, with at most `max_evals`
-/// evaluations and `scan` coarse points per parameter.
+/// evaluations and `scan` coarse points per parameter. `f(x, stop)` returns
+/// the objective at x, or, when that exceeds `stop`, any value above `stop`.
 pub fn minimize(
-    f: &mut dyn FnMut(&[f64]) -> f64,
+    f: &mut dyn FnMut(&[f64], f64) -> f64,
     bounds: &[Bound],
     x0: &[f64],
     scan: usize,
@@ -75,10 +77,10 @@ pub fn minimize(
 ) -> FitResult {
     let d = bounds.len();
     let mut evals = 0usize;
-    let mut eval = |u: &[f64], evals: &mut usize| -> f64 {
+    let mut eval = |u: &[f64], evals: &mut usize, stop: f64| -> f64 {
         *evals += 1;
         let x: Vec<f64> = u.iter().zip(bounds).map(|(u, b)| b.at(*u)).collect();
-        let v = f(&x);
+        let v = f(&x, stop);
         if v.is_finite() {
             v
         } else {
@@ -86,7 +88,7 @@ pub fn minimize(
         }
     };
     let mut best_u: Vec<f64> = x0.iter().zip(bounds).map(|(x, b)| b.u_of(*x)).collect();
-    let mut best = eval(&best_u, &mut evals);
+    let mut best = eval(&best_u, &mut evals, f64::INFINITY);
     // Coarse scan: a full grid of `scan` points per parameter (capped at 27
     // points in all), so that valleys running across parameters are found.
     let per = match d {
@@ -105,7 +107,7 @@ pub fn minimize(
                 (j as f64 + 0.5) / per as f64
             })
             .collect();
-        let v = eval(&u, &mut evals);
+        let v = eval(&u, &mut evals, best);
         if v < best {
             best = v;
             best_u = u;
@@ -121,7 +123,7 @@ pub fn minimize(
         } else {
             u[k] - step
         };
-        let v = eval(&u, &mut evals);
+        let v = eval(&u, &mut evals, f64::INFINITY);
         simplex.push((u, v));
     }
     let clamp = |u: Vec<f64>| -> Vec<f64> { u.into_iter().map(|x| x.clamp(0.0, 1.0)).collect() };
@@ -155,16 +157,18 @@ pub fn minimize(
             )
         };
         let xr = along(1.0);
-        let fr = eval(&xr, &mut evals);
+        // Each trial is only compared with the worst vertex (reflection,
+        // contraction) or with the reflection (expansion): those are its stops.
+        let fr = eval(&xr, &mut evals, worst.1);
         if fr < simplex[0].1 {
             let xe = along(2.0);
-            let fe = eval(&xe, &mut evals);
+            let fe = eval(&xe, &mut evals, fr);
             simplex[d] = if fe < fr { (xe, fe) } else { (xr, fr) };
         } else if fr < simplex[d - 1].1 {
             simplex[d] = (xr, fr);
         } else {
             let xc = along(if fr < worst.1 { 0.5 } else { -0.5 });
-            let fc = eval(&xc, &mut evals);
+            let fc = eval(&xc, &mut evals, worst.1.min(fr));
             if fc < worst.1.min(fr) {
                 simplex[d] = (xc, fc);
             } else {
@@ -172,7 +176,7 @@ pub fn minimize(
                 let b = simplex[0].0.clone();
                 for s in simplex.iter_mut().skip(1) {
                     let u: Vec<f64> = s.0.iter().zip(&b).map(|(x, b)| b + 0.5 * (x - b)).collect();
-                    let v = eval(&u, &mut evals);
+                    let v = eval(&u, &mut evals, f64::INFINITY);
                     *s = (u, v);
                 }
             }
@@ -215,7 +219,7 @@ mod tests {
             lo: 1e-16,
             hi: 1e-11,
         }];
-        let mut f = |x: &[f64]| (x[0].log10() + 13.3).powi(2);
+        let mut f = |x: &[f64], _: f64| (x[0].log10() + 13.3).powi(2);
         let r = minimize(&mut f, &b, &[1e-13], 7, 60);
         assert!((r.x[0].log10() + 13.3).abs() < 0.01, "{r:?}");
         assert!(r.evals <= 60);
@@ -224,7 +228,8 @@ mod tests {
     #[test]
     fn finds_a_two_parameter_minimum_within_budget() {
         let b = [Bound { lo: 0.0, hi: 500.0 }, Bound { lo: 1e-4, hi: 5e-2 }];
-        let mut f = |x: &[f64]| ((x[0] - 42.0) / 42.0).powi(2) + (x[1].ln() - 3e-3f64.ln()).powi(2);
+        let mut f =
+            |x: &[f64], _: f64| ((x[0] - 42.0) / 42.0).powi(2) + (x[1].ln() - 3e-3f64.ln()).powi(2);
         let r = minimize(&mut f, &b, &[30.0, 2e-3], 7, 120);
         assert!((r.x[0] - 42.0).abs() < 1.0, "{r:?}");
         assert!((r.x[1] / 3e-3 - 1.0).abs() < 0.05, "{r:?}");
@@ -233,7 +238,7 @@ mod tests {
     #[test]
     fn stays_inside_the_bounds() {
         let b = [Bound { lo: 1.0, hi: 2.0 }];
-        let mut f = |x: &[f64]| -x[0];
+        let mut f = |x: &[f64], _: f64| -x[0];
         let r = minimize(&mut f, &b, &[1.5], 5, 40);
         assert!((r.x[0] - 2.0).abs() < 1e-9, "{r:?}");
     }

@@ -18,6 +18,7 @@
 
 pub mod diagnose;
 pub mod fit;
+pub mod prefit;
 pub mod replay;
 pub mod report;
 pub mod segment;

@@ -6,8 +6,8 @@
 //! over one log interval (the firmware holds
 //! its command for a control period; the simulator's commands change only at
 //! controller ticks, which fall on the log grid). The model starts at rest at
-//! the first measured positions and load (averaged over the first 20 ms when
-//! the run starts at rest). The outputs are what ideal sensors
+//! the first measured positions and load (averaged over the first 20 ms while
+//! the encoder has not moved). The outputs are what ideal sensors
 //! (with the candidate `sensor_delay`, if any) would have reported at the log
 //! instants, for the channels the gap compares.
 
@@ -30,10 +30,6 @@ pub struct Replay {
     pub ch: [Vec<f64>; 4],
 }
 
-fn median_head(v: &[f64], n: usize) -> f64 {
-    super::stats::median(&v[..n.min(v.len())])
-}
-
 /// Replay `log` on `rig` with plant steps of at most `max_dt_s`.
 pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
     let load = filtered_load(log);
@@ -52,34 +48,54 @@ pub fn filtered_load(log: &RunLog) -> Vec<f64> {
 
 /// Replay with a given load signal (see [`filtered_load`]).
 pub fn replay_with_load(log: &RunLog, load: &[f64], rig: &Rig, max_dt_s: f64) -> Replay {
+    let mut ch: [Vec<f64>; 4] = Default::default();
+    for c in ch.iter_mut() {
+        c.reserve(log.len());
+    }
+    replay_visit(log, load, rig, max_dt_s, |_, v| {
+        for (c, x) in ch.iter_mut().zip(v) {
+            c.push(x);
+        }
+        true
+    });
+    Replay { ch }
+}
+
+/// Replay with a given load signal, handing each log instant's channels
+/// (index, [`CHANNELS`] order; NaN after a divergence) to `visit`, which
+/// stops the replay by returning false.
+pub fn replay_visit(
+    log: &RunLog,
+    load: &[f64],
+    rig: &Rig,
+    max_dt_s: f64,
+    mut visit: impl FnMut(usize, [f64; 4]) -> bool,
+) {
     let n = log.len();
     let log_dt = log.dt_s();
-    let sub = ((log_dt / max_dt_s).ceil() as usize).max(1);
+    let sub = ((log_dt / (max_dt_s * rig.step_scale())).ceil() as usize).max(1);
     let h = log_dt / sub as f64;
-    let head = ((0.02 / log_dt.max(1e-6)) as usize).max(1);
-    // Start at the measured rest: medians of the first 20 ms when the encoder
-    // shows no motion there (they average the noise out), else the first samples.
-    let at_rest = log.xi_m[..head.min(n)]
+    // Start at the measured rest: means over the samples of the first 20 ms
+    // in which the encoder has not yet moved by 5 um (at least the first).
+    // A mean, not a median: the LVDT's 29 um quantisation steps are dithered
+    // by its noise only on average, and a single sample is 13 um off.
+    let head = ((0.02 / log_dt.max(1e-6)) as usize).clamp(1, n.max(1));
+    let still = log.xi_m[..head.min(n)]
         .iter()
-        .all(|x| (x - log.xi_m[0]).abs() < 1e-6);
-    let start = |v: &[f64]| if at_rest { median_head(v, head) } else { v[0] };
-    let mut s = rig.initial_state(start(load));
-    s.x.xi_m = start(&log.xi_m);
-    s.x.xo_m = start(&log.xo_m);
-    s.ext.xp_m = s.x.xi_m;
+        .take_while(|x| (*x - log.xi_m[0]).abs() < 5e-6)
+        .count()
+        .max(1);
+    let start = |v: &[f64]| super::stats::mean(&v[..still.min(v.len())]);
+    let mut s = rig.rest_state(start(load), start(&log.xi_m), start(&log.xo_m));
     let mut sensors = Sensors::new(SensorMode::Ideal, 0);
     if let Some(d) = &rig.effects().sensor_delay {
         sensors = sensors.with_delay(d, log_dt);
     }
-    let mut ch: [Vec<f64>; 4] = Default::default();
-    for c in ch.iter_mut() {
-        c.reserve(n);
-    }
     let mut diverged = false;
-    for (&ft, &vcmd) in load.iter().zip(&log.vcmd_mps) {
+    for (k, (&ft, &vcmd)) in load.iter().zip(&log.vcmd_mps).enumerate() {
         if diverged {
-            for c in ch.iter_mut() {
-                c.push(f64::NAN);
+            if !visit(k, [f64::NAN; 4]) {
+                return;
             }
             continue;
         }
@@ -91,13 +107,12 @@ pub fn replay_with_load(log: &RunLog, load: &[f64], rig: &Rig, max_dt_s: f64) ->
             p2_pa: x.p2_pa,
             ft_n: ft,
         });
-        for (c, v) in ch.iter_mut().zip([r.xo_m, r.xi_m, r.p1_pa, r.p2_pa]) {
-            c.push(v);
+        if !visit(k, [r.xo_m, r.xi_m, r.p1_pa, r.p2_pa]) {
+            return;
         }
         for _ in 0..sub {
             rig.step(&mut s, vcmd, ft, h);
         }
         diverged = !s.is_finite();
     }
-    Replay { ch }
 }

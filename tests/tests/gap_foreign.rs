@@ -1,0 +1,81 @@
+//! The gap diagnosis on rig logs from an independent simulator whose effect
+//! models have forms the diagnosis does not know (`dca_tests::foreign`):
+//! orifice leakage, LuGre friction, Hertz-contact backlash, an exponential
+//! air law, a second-order LVDT filter with delayed pressures, a servo force
+//! limit, Bouc-Wen hose hysteresis and a gas-wall thermal model. Different
+//! scenarios from the project's own suite, too. The table is written to
+//! target/gap-foreign.md.
+
+use dca_tests::foreign::{cases, log_csv, ForeignCase, ForeignScenario};
+use host_sim::effects::{EffectKind, Effects};
+use host_sim::gap::diagnose::{Options, NONE_GAP};
+use host_sim::gap::validation::{markdown, score, summary, Case};
+use host_sim::runlog::RunLog;
+
+fn as_case(c: &ForeignCase) -> Case {
+    Case {
+        name: c.name.clone(),
+        truth: c
+            .truth
+            .iter()
+            .filter(|t| **t != "none")
+            .map(|t| EffectKind::by_name(t).expect("an identifier of plant.md section 12"))
+            .collect(),
+        // The foreign effects have no counterpart here: the truth is the name.
+        effects: Effects::NONE,
+    }
+}
+
+fn read(case: &ForeignCase, s: ForeignScenario, seed: u64) -> RunLog {
+    RunLog::parse(&log_csv(case, s, seed), s.name()).expect("foreign log reads")
+}
+
+#[test]
+fn gap_diagnosis_on_foreign_effect_forms() {
+    let foreign = cases();
+    let ours: Vec<Case> = foreign.iter().map(as_case).collect();
+    let out = score(
+        &ours,
+        |i, _| {
+            let f = &foreign[i];
+            let seed = 500 + 2 * i as u64;
+            (
+                read(f, ForeignScenario::Fit, seed),
+                read(f, ForeignScenario::Check, seed + 1),
+            )
+        },
+        &Options::default(),
+        false,
+    );
+    let table = markdown(&out);
+    println!("{table}");
+    let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/gap-foreign.md");
+    std::fs::write(&target, &table).ok();
+    let s = summary(&out);
+    // The targets, on effects of forms the diagnosis never saw.
+    assert_eq!(s.clean.0, s.clean.1, "clean runs must give `none`");
+    assert!(
+        s.single.0 as f64 >= 0.9 * s.single.1 as f64,
+        "single effects right: {}/{}",
+        s.single.0,
+        s.single.1
+    );
+    assert!(s.pairs.0 >= 1, "pairs naming one of the two: {:?}", s.pairs);
+    // Held out: where the check runs show a gap, the chosen effect shrinks it
+    // by at least 30 % (the verdict's own criterion) or brings it within the
+    // noise. The forms differ, so 50 % is not asserted here; the README
+    // gives the measured shrinks.
+    for o in out
+        .iter()
+        .filter(|o| o.right() && o.case.truth.len() == 1 && o.check_excited())
+    {
+        let c = &o.diagnosis.check;
+        assert!(
+            c.shrink >= 0.3 || c.after < NONE_GAP,
+            "{}: check {:.2} -> {:.2}",
+            o.case.name,
+            c.before,
+            c.after
+        );
+    }
+}
