@@ -6,8 +6,8 @@
 //! over one log interval (the firmware holds
 //! its command for a control period; the simulator's commands change only at
 //! controller ticks, which fall on the log grid). The model starts at rest at
-//! the first measured positions and load (averaged over the first 20 ms while
-//! the encoder has not moved). The outputs are what ideal sensors
+//! the first encoder count and the measured position and load averaged over
+//! the first 20 ms while the encoder has not moved. The outputs are what ideal sensors
 //! (with the candidate `sensor_delay`, if any) would have reported at the log
 //! instants, for the channels the gap compares.
 
@@ -75,18 +75,22 @@ pub fn replay_visit(
     let log_dt = log.dt_s();
     let sub = ((log_dt / (max_dt_s * rig.step_scale())).ceil() as usize).max(1);
     let h = log_dt / sub as f64;
-    // Start at the measured rest: means over the samples of the first 20 ms
-    // in which the encoder has not yet moved by 5 um (at least the first).
-    // A mean, not a median: the LVDT's 29 um quantisation steps are dithered
-    // by its noise only on average, and a single sample is 13 um off.
+    // Start at rest at the encoder's first count (it has no noise), with the
+    // LVDT and the load averaged over the samples of the first 20 ms in
+    // which the encoder has not yet moved by 5 um (at least the first): a
+    // single LVDT sample is 13 um off, and a median of its 29 um quantisation
+    // steps is biased; a mean is dithered by the noise. (Xo lags Xi through
+    // the hoses, so those few micrometres of motion barely reach it.)
     let head = ((0.02 / log_dt.max(1e-6)) as usize).clamp(1, n.max(1));
-    let still = log.xi_m[..head.min(n)]
+    let xi0 = log.xi_m[0];
+    let still = log.xi_m[..head]
         .iter()
-        .take_while(|x| (*x - log.xi_m[0]).abs() < 5e-6)
+        .take_while(|x| (*x - xi0).abs() < 5e-6)
         .count()
         .max(1);
     let start = |v: &[f64]| super::stats::mean(&v[..still.min(v.len())]);
-    let mut s = rig.rest_state(start(load), start(&log.xi_m), start(&log.xo_m));
+    let (ft0, xo0) = (start(load), start(&log.xo_m));
+    let mut s = rig.rest_state(ft0, xi0, xo0);
     let mut sensors = Sensors::new(SensorMode::Ideal, 0);
     if let Some(d) = &rig.effects().sensor_delay {
         sensors = sensors.with_delay(d, log_dt);
