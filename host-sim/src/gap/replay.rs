@@ -72,6 +72,9 @@ pub fn replay_visit(
     mut visit: impl FnMut(usize, [f64; 4]) -> bool,
 ) {
     let n = log.len();
+    if n == 0 {
+        return;
+    }
     let log_dt = log.dt_s();
     let sub = ((log_dt / (max_dt_s * rig.step_scale())).ceil() as usize).max(1);
     let h = log_dt / sub as f64;
@@ -81,7 +84,7 @@ pub fn replay_visit(
     // single LVDT sample is 13 um off, and a median of its 29 um quantisation
     // steps is biased; a mean is dithered by the noise. (Xo lags Xi through
     // the hoses, so those few micrometres of motion barely reach it.)
-    let head = ((0.02 / log_dt.max(1e-6)) as usize).clamp(1, n.max(1));
+    let head = ((0.02 / log_dt.max(1e-6)) as usize).clamp(1, n);
     let xi0 = log.xi_m[0];
     let still = log.xi_m[..head]
         .iter()
