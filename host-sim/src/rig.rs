@@ -6,9 +6,9 @@
 //! * `friction`: the Stribeck force is added to the actuating piston's forces;
 //! * `backlash`: the power piston (position xp, an extra state) sits behind
 //!   the motor (the encoder's Xi) by the play's flank the hydraulic force
-//!   pushes it against plus the screw's deflection under that force, settling
-//!   there with a 1 ms time constant; the line volumes and flows use xp and
-//!   its velocity;
+//!   pushes it against plus the screw's deflection under that force (a
+//!   massless piston: its velocity solves the coupling exactly); the line
+//!   volumes and flows use xp and its velocity;
 //! * `air`: the oil compressibility V/beta_e of each line becomes V/beta_eff(P);
 //! * `motor_limit`: the servo's speed target is capped, and its force (the
 //!   speed loop's demand on the reflected mass plus the hydraulic force on the
