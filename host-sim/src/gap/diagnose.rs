@@ -307,7 +307,7 @@ pub fn gap(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64) -> f64 {
 /// the replays stop once the gap is certain to exceed it (a block's excess
 /// is at least minus its expected noise power, so the blocks still to come
 /// can lower a channel's sum by a known amount only). Not stopped, the
-/// result is bit for bit that of [`gap_of`] on full replays.
+/// result is bit for bit that of the gap computed from full replays.
 pub fn gap_bounded(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64, stop: f64) -> f64 {
     let Some(rig) = rig_with(base, effects) else {
         return f64::INFINITY;
