@@ -556,6 +556,26 @@ pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
     dp - dp.abs() * z_pa / h.yield_pa
 }
 
+/// Servo acceleration towards the speed command `vc_mps` (already within
+/// the nominal +-v_max) from the speed `v_mps`: the nominal first-order
+/// servo with time constant `tau_s`, or under `limit` its speed cap and
+/// force limit against the hydraulic force `f_load_n`.
+pub fn servo_accel(
+    limit: Option<&MotorLimit>,
+    vc_mps: f64,
+    v_mps: f64,
+    tau_s: f64,
+    f_load_n: f64,
+) -> f64 {
+    match limit {
+        Some(m) => {
+            let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
+            motor_accel(m, (target - v_mps) / tau_s, f_load_n)
+        }
+        None => (vc_mps - v_mps) / tau_s,
+    }
+}
+
 /// Servo acceleration under the motor limit: the speed loop asks for
 /// `a_mps2` towards its target against the hydraulic force `f_load_n` on the
 /// power piston (positive opposing extension); the drive's force is clamped.

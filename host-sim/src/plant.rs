@@ -505,6 +505,12 @@ impl Plant {
         }
     }
 
+    /// Hydraulic force on the power piston, AP1 P1 - AP2 P2 (positive
+    /// opposing extension), N.
+    pub fn piston_force_n(&self, p1_pa: f64, p2_pa: f64) -> f64 {
+        self.params.ap1_m2 * p1_pa - self.params.ap2_m2 * p2_pa
+    }
+
     /// Net force on the actuating piston, AA1 P1 - AA2 P2 - Ft - c_visc vo + Fs
     /// (Fs: end stops), N.
     #[inline]

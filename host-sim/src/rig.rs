@@ -173,8 +173,7 @@ impl Rig {
 
     /// Hydraulic force on the power piston, positive opposing extension, N.
     fn piston_force_n(&self, x: &State) -> f64 {
-        let p = self.plant.params();
-        p.ap1_m2 * x.p1_pa - p.ap2_m2 * x.p2_pa
+        self.plant.piston_force_n(x.p1_pa, x.p2_pa)
     }
 
     /// Line capacitance of the explicit hose models, m^3/Pa: the oil's
@@ -202,12 +201,8 @@ impl Rig {
         let mut x = s.x;
         // Servo (motor side): target, torque-speed cut, acceleration limit.
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
-        let mut dvi = (vc - x.vi_mps) / p.tau_m_s;
         let f_piston = self.piston_force_n(&x);
-        if let Some(m) = &e.motor_limit {
-            let target = vc.clamp(-m.speed_max_mps, m.speed_max_mps);
-            dvi = effects::motor_accel(m, (target - x.vi_mps) / p.tau_m_s, f_piston);
-        }
+        let dvi = effects::servo_accel(e.motor_limit.as_ref(), vc, x.vi_mps, p.tau_m_s, f_piston);
         let mut fo = self.plant.forces_n(&x, ft_n);
         if let Some(f) = &e.friction {
             fo += effects::friction_force_n(f, x.vo_mps);

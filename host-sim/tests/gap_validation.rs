@@ -5,17 +5,12 @@
 //! table is written to target/gap-validation.md.
 
 use host_sim::gap::diagnose::Options;
-use host_sim::gap::validation::{cases, markdown, run_suite, summary};
+use host_sim::gap::validation::{cases, publish, run_suite};
 
 #[test]
 fn gap_validation_suite() {
     let out = run_suite(&cases(), &Options::default(), false);
-    let table = markdown(&out);
-    println!("{table}");
-    let target =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/gap-validation.md");
-    std::fs::write(&target, &table).ok();
-    let s = summary(&out);
+    let s = publish(&out, "gap-validation.md");
     assert_eq!(s.clean.0, s.clean.1, "clean runs must give `none`");
     assert!(
         s.single.0 as f64 >= 0.9 * s.single.1 as f64,

@@ -9,7 +9,7 @@
 use dca_tests::foreign::{cases, log_csv, ForeignCase, ForeignScenario};
 use host_sim::effects::{EffectKind, Effects};
 use host_sim::gap::diagnose::{Options, NONE_GAP};
-use host_sim::gap::validation::{markdown, score, summary, Case};
+use host_sim::gap::validation::{publish, score, Case};
 use host_sim::runlog::RunLog;
 
 fn as_case(c: &ForeignCase) -> Case {
@@ -47,11 +47,7 @@ fn gap_diagnosis_on_foreign_effect_forms() {
         &Options::default(),
         false,
     );
-    let table = markdown(&out);
-    println!("{table}");
-    let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/gap-foreign.md");
-    std::fs::write(&target, &table).ok();
-    let s = summary(&out);
+    let s = publish(&out, "gap-foreign.md");
     // The targets, on effects of forms the diagnosis never saw.
     assert_eq!(s.clean.0, s.clean.1, "clean runs must give `none`");
     assert!(

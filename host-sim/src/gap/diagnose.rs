@@ -252,13 +252,25 @@ fn block_excess(run: &Run, sim: &Replay, c: usize) -> Vec<f64> {
         .zip(sim.ch[c].chunks(BLOCK))
         .map(|(m, s)| {
             let r = m.iter().zip(s).map(|(a, b)| a - b).sum::<f64>() / m.len() as f64;
-            if r.is_finite() {
-                (r * r - noise_part) / s2
-            } else {
-                1e12
-            }
+            block_term(r, noise_part, s2)
         })
         .collect()
+}
+
+/// Excess power of one block whose mean residual is `r`: its expected noise
+/// power `noise_part` removed, in units of the channel's scale squared `s2`
+/// (a diverged replay counts as huge).
+fn block_term(r: f64, noise_part: f64, s2: f64) -> f64 {
+    if r.is_finite() {
+        (r * r - noise_part) / s2
+    } else {
+        1e12
+    }
+}
+
+/// A run's share of the pooled sum: its channels' mean excess times its length.
+fn run_weight(excess: &[f64; 4], n: usize) -> f64 {
+    excess.iter().sum::<f64>() / 4.0 * n as f64
 }
 
 /// Per-channel excess power (mean over blocks, >= 0) of one run.
@@ -277,7 +289,7 @@ fn pooled(excess: &[[f64; 4]], lens: &[usize]) -> f64 {
     }
     let mut acc = 0.0;
     for (e, n) in excess.iter().zip(lens) {
-        acc += e.iter().sum::<f64>() / 4.0 * *n as f64;
+        acc += run_weight(e, *n);
     }
     (acc / total as f64).sqrt()
 }
@@ -340,12 +352,7 @@ pub fn gap_bounded(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64, sto
                 return true;
             }
             for c in 0..4 {
-                let r = block[c] / in_block as f64;
-                sums[c] += if r.is_finite() {
-                    (r * r - noise_part[c]) / s2[c]
-                } else {
-                    1e12
-                };
+                sums[c] += block_term(block[c] / in_block as f64, noise_part[c], s2[c]);
                 block[c] = 0.0;
             }
             in_block = 0;
@@ -354,7 +361,7 @@ pub fn gap_bounded(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64, sto
             let low: [f64; 4] = std::array::from_fn(|c| {
                 ((sums[c] - left * noise_part[c] / s2[c]) / blocks as f64).max(0.0)
             });
-            bound = low.iter().sum::<f64>() / 4.0 * n as f64;
+            bound = run_weight(&low, n);
             acc + bound <= limit
         });
         if done < blocks {
@@ -363,7 +370,7 @@ pub fn gap_bounded(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64, sto
                 .max(stop * (1.0 + 1e-12));
         }
         let e: [f64; 4] = std::array::from_fn(|c| (sums[c] / blocks as f64).max(0.0));
-        acc += e.iter().sum::<f64>() / 4.0 * n as f64;
+        acc += run_weight(&e, n);
     }
     (acc / total as f64).sqrt()
 }

@@ -31,19 +31,11 @@ fn servo_error(run: &Run, plant: &Plant, limit: Option<&MotorLimit>, stop: f64) 
         if err > stop {
             return err;
         }
-        let f = p.ap1_m2 * log.p1_pa[k] - p.ap2_m2 * log.p2_pa[k];
+        let f = plant.piston_force_n(log.p1_pa[k], log.p2_pa[k]);
         let vc = plant
             .software_limited_v_cmd(xi, log.vcmd_mps[k])
             .clamp(-p.v_max_mps, p.v_max_mps);
-        let accel = |v: f64| -> f64 {
-            match limit {
-                Some(m) => {
-                    let target = vc.clamp(-m.speed_max_mps, m.speed_max_mps);
-                    effects::motor_accel(m, (target - v) / p.tau_m_s, f)
-                }
-                None => (vc - v) / p.tau_m_s,
-            }
-        };
+        let accel = |v: f64| effects::servo_accel(limit, vc, v, p.tau_m_s, f);
         for _ in 0..sub {
             // Midpoint rule on (xi, vi); the servo's time constant is 20 steps.
             let a1 = accel(vi);

@@ -310,6 +310,18 @@ pub fn summary(out: &[Outcome]) -> Summary {
     }
 }
 
+/// Print the [`markdown`] of a suite's outcomes, save it as `target/<file>`
+/// of the workspace (best effort), and score the outcomes.
+pub fn publish(out: &[Outcome], file: &str) -> Summary {
+    let table = markdown(out);
+    println!("{table}");
+    let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../target")
+        .join(file);
+    std::fs::write(&target, &table).ok();
+    summary(out)
+}
+
 /// The confusion table (truth by verdict) and the per-case results, Markdown.
 pub fn markdown(out: &[Outcome]) -> String {
     let mut verdicts: Vec<String> = EffectKind::ALL
