@@ -20,6 +20,16 @@
 //! is *corrupt*, a gap in `seq` means frames were *lost*, and no frame for
 //! longer than the timeout while the loop is running is *late*. Each is counted
 //! and is a fault: the command falls to zero, a wrong command is never sent.
+//!
+//! # Start-up
+//! Supervision starts with the first valid frame, not when the firmware
+//! enters HIL mode or is armed: a host may take as long as it needs to open
+//! its port. Until then the link is *waiting*: bytes that do not form a valid
+//! frame with `seq` 0 (a banner, an echo, line noise when a port opens, a
+//! stale frame of an earlier run) are counted as *skipped* and get no reply,
+//! no timeout runs, and nothing trips. A host starts with a lone `0x00`, which
+//! ends whatever partial frame the firmware's reader holds, and then sends
+//! `seq` 0; it discards received bytes up to the first valid reply.
 
 use serde::{Deserialize, Serialize};
 
@@ -186,9 +196,10 @@ fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
 /// Collects bytes from a stream into frames at the `0x00` delimiters.
 #[derive(Clone, Debug)]
 pub struct FrameReader {
-    buf: [u8; MAX_FRAME_LEN],
-    len: usize,
+    buf: heapless::Vec<u8, MAX_FRAME_LEN>,
     overflow: bool,
+    /// `buf` holds a frame already returned.
+    ended: bool,
 }
 
 impl Default for FrameReader {
@@ -210,41 +221,41 @@ impl FrameReader {
     /// An empty reader.
     pub const fn new() -> Self {
         Self {
-            buf: [0; MAX_FRAME_LEN],
-            len: 0,
+            buf: heapless::Vec::new(),
             overflow: false,
+            ended: false,
         }
     }
 
     /// Forget a partial frame.
     pub fn reset(&mut self) {
-        self.len = 0;
+        self.buf.clear();
         self.overflow = false;
+        self.ended = false;
     }
 
     /// Feed one byte. A delimiter after at least one byte completes a frame
     /// (or reports the overflow of an over-long one); empty frames (two
     /// delimiters in a row) are skipped.
     pub fn push(&mut self, byte: u8) -> Option<ReadEvent<'_>> {
+        if core::mem::take(&mut self.ended) {
+            self.buf.clear();
+        }
         if byte == 0 {
-            let (len, overflow) = (self.len, self.overflow);
-            self.len = 0;
-            self.overflow = false;
-            if overflow {
+            if core::mem::take(&mut self.overflow) {
+                self.buf.clear();
                 return Some(ReadEvent::Overflow);
             }
-            if len == 0 {
+            if self.buf.is_empty() {
                 return None;
             }
-            // len <= MAX_FRAME_LEN: `get` only spares the panic path.
-            return self.buf.get_mut(..len).map(ReadEvent::Frame);
+            // The frame stays in the buffer while the caller decodes it (in
+            // place); the next byte starts a new one.
+            self.ended = true;
+            return Some(ReadEvent::Frame(&mut self.buf));
         }
-        match self.buf.get_mut(self.len) {
-            Some(slot) => {
-                *slot = byte;
-                self.len += 1;
-            }
-            None => self.overflow = true,
+        if self.buf.push(byte).is_err() {
+            self.overflow = true;
         }
         None
     }
@@ -261,6 +272,9 @@ pub struct LinkCounters {
     pub lost: u32,
     /// Timeouts: no frame within the timeout while running.
     pub late: u32,
+    /// Frames (or stray bytes up to a delimiter) before the link was live:
+    /// ignored, no fault.
+    pub skipped: u32,
 }
 
 /// What the monitor concluded about one received frame.
@@ -290,39 +304,50 @@ impl LinkError {
     }
 }
 
-/// The firmware's view of the HIL link: sequence and timeout checks and
-/// counters. Pure bookkeeping; time is given in control-timer ticks.
+/// The firmware's view of the HIL link: start-up, sequence and timeout checks
+/// and counters. Pure bookkeeping; time is given in control-timer ticks.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LinkMonitor {
     expected: u32,
     idle_ticks: u32,
+    /// A valid frame with `seq` 0 has arrived since the last restart.
+    live: bool,
     counters: LinkCounters,
 }
 
 impl LinkMonitor {
-    /// A monitor expecting `seq` 0 next.
+    /// A waiting monitor (expecting `seq` 0 to start).
     pub const fn new() -> Self {
         Self {
             expected: 0,
             idle_ticks: 0,
+            live: false,
             counters: LinkCounters {
                 good: 0,
                 corrupt: 0,
                 lost: 0,
                 late: 0,
+                skipped: 0,
             },
         }
     }
 
-    /// Expect `seq` 0 next and restart the timeout (counters are kept).
+    /// Wait for a new start (`seq` 0) and stop the timeout (counters are
+    /// kept).
     pub fn restart(&mut self) {
         self.expected = 0;
         self.idle_ticks = 0;
+        self.live = false;
     }
 
     /// The `seq` expected next.
     pub fn expected(&self) -> u32 {
         self.expected
+    }
+
+    /// Whether the link is supervised (a valid first frame has arrived).
+    pub fn is_live(&self) -> bool {
+        self.live
     }
 
     /// The counters so far.
@@ -335,13 +360,33 @@ impl LinkMonitor {
         self.counters = LinkCounters::default();
     }
 
-    /// Check one received frame body (without its delimiter). On success the
-    /// sample frame is returned and the next `seq` is expected; on a failure the
-    /// matching counter is incremented and the expected `seq` stays (the host
-    /// must restart the sequence after the fault is cleared).
-    pub fn receive(&mut self, body: &mut [u8]) -> Result<SampleFrame, LinkError> {
+    /// Check one received frame body (without its delimiter).
+    ///
+    /// While waiting, a valid frame with `seq` 0 makes the link live and is
+    /// returned; anything else is skipped (`Ok(None)`). Once live, the frame
+    /// with the expected `seq` is returned and the next one is expected; a
+    /// frame that fails to decode or breaks the sequence is counted and is an
+    /// error, and the expected `seq` stays (the host restarts the sequence
+    /// after the fault is cleared).
+    pub fn receive(&mut self, body: &mut [u8]) -> Result<Option<SampleFrame>, LinkError> {
+        let decoded: Result<SampleFrame, FrameError> = decode(body);
+        if !self.live {
+            return match decoded {
+                Ok(f) if f.seq == 0 => {
+                    self.live = true;
+                    self.idle_ticks = 0;
+                    self.expected = 1;
+                    self.counters.good = self.counters.good.saturating_add(1);
+                    Ok(Some(f))
+                }
+                _ => {
+                    self.counters.skipped = self.counters.skipped.saturating_add(1);
+                    Ok(None)
+                }
+            };
+        }
         self.idle_ticks = 0;
-        let frame: SampleFrame = match decode(body) {
+        let frame = match decoded {
             Ok(f) => f,
             Err(e) => {
                 self.counters.corrupt = self.counters.corrupt.saturating_add(1);
@@ -357,21 +402,28 @@ impl LinkMonitor {
         }
         self.expected = self.expected.wrapping_add(1);
         self.counters.good = self.counters.good.saturating_add(1);
-        Ok(frame)
+        Ok(Some(frame))
     }
 
-    /// Count an over-long frame (the reader's [`ReadEvent::Overflow`]).
-    pub fn overflow(&mut self) -> LinkError {
+    /// Count an over-long frame or a receiver error (the reader's
+    /// [`ReadEvent::Overflow`], an overrun): an error once live, skipped
+    /// while waiting.
+    pub fn overflow(&mut self) -> Option<LinkError> {
+        if !self.live {
+            self.counters.skipped = self.counters.skipped.saturating_add(1);
+            return None;
+        }
         self.idle_ticks = 0;
         self.counters.corrupt = self.counters.corrupt.saturating_add(1);
-        LinkError::Corrupt(FrameError::Length)
+        Some(LinkError::Corrupt(FrameError::Length))
     }
 
     /// One control-timer tick passed while frames are expected. Returns
     /// [`LinkError::Late`] once, when `timeout_ticks` ticks passed without a
-    /// frame (`timeout_ticks` = 0 never times out).
+    /// frame while live (`timeout_ticks` = 0 never times out; a waiting link
+    /// never times out).
     pub fn tick(&mut self, timeout_ticks: u32) -> Option<LinkError> {
-        if timeout_ticks == 0 {
+        if timeout_ticks == 0 || !self.live {
             return None;
         }
         self.idle_ticks = self.idle_ticks.saturating_add(1);

@@ -2,12 +2,14 @@
 //! core's own control loop.
 
 use dca_core::console::{
-    write_log_header, write_log_row, Console, Edit, LineEditor, LogRow, Status, Target, MAX_LINE,
+    write_log_header, write_log_row, Console, Edit, LineEditor, LineError, LogRow, Received,
+    Receiver, Status, Target, MAX_LINE, RX_QUEUE_BYTES,
 };
 use dca_core::controller::{Controller, ControllerKind, Sample};
 use dca_core::settings::Settings;
 use dca_core::supervisor::{ControlLoop, Refused, State};
 use dca_core::text::Buf;
+use proptest::prelude::*;
 
 struct Model {
     lp: ControlLoop,
@@ -323,4 +325,176 @@ fn telemetry_rows_form_a_run_log() {
     );
     assert_eq!(line.split(',').count(), header.split(',').count());
     assert!(!b.overflowed());
+}
+
+/// What the console task gets from a receiver, as text (`!reason` for errors).
+fn drain<const N: usize>(rx: &mut Receiver<N>) -> Vec<String> {
+    let mut buf = [0u8; MAX_LINE];
+    let mut got = Vec::new();
+    while let Some(r) = rx.next(&mut buf) {
+        got.push(match r {
+            Received::Line(s) => s.to_string(),
+            Received::Bad(e) => format!("!{}", e.as_str()),
+        });
+    }
+    got
+}
+
+fn feed<const N: usize>(rx: &mut Receiver<N>, bytes: &[u8]) {
+    for &b in bytes {
+        rx.receive(b);
+    }
+}
+
+#[test]
+fn twenty_long_lines_pasted_at_once_all_arrive() {
+    let mut rx: Receiver<RX_QUEUE_BYTES> = Receiver::new();
+    let lines: Vec<String> = (0..20).map(|i| format!("set eso.beta1 {i:0>66}")).collect();
+    assert!(lines.iter().all(|l| l.len() == MAX_LINE));
+    for l in &lines {
+        feed(&mut rx, l.as_bytes());
+        feed(&mut rx, b"\r\n");
+    }
+    assert_eq!(drain(&mut rx), lines);
+    assert_eq!(rx.discarded_total(), 0);
+    assert_eq!(rx.queued_bytes(), 0);
+}
+
+#[test]
+fn a_500_byte_paste_arrives_whole_or_as_one_error() {
+    let mut rx: Receiver<RX_QUEUE_BYTES> = Receiver::new();
+    // 50 short lines, 500 bytes with their CR LF.
+    let paste: String = (0..50).map(|i| format!("get {i:0>4}\r\n")).collect();
+    assert_eq!(paste.len(), 500);
+    feed(&mut rx, paste.as_bytes());
+    let got = drain(&mut rx);
+    assert_eq!(got.len(), 50);
+    assert_eq!(got[49], "get 0049");
+    // One 500-character line: one error, and the next line is fine.
+    feed(&mut rx, &[b'x'; 500]);
+    feed(&mut rx, b"\r\nhelp\r\n");
+    assert_eq!(drain(&mut rx), vec!["!line too long", "help"]);
+}
+
+#[test]
+fn a_full_queue_answers_the_lines_that_did_not_fit_in_order() {
+    let mut rx: Receiver<RX_QUEUE_BYTES> = Receiver::new();
+    let line = "a".repeat(MAX_LINE);
+    for _ in 0..40 {
+        feed(&mut rx, line.as_bytes());
+        feed(&mut rx, b"\n");
+    }
+    let fit = RX_QUEUE_BYTES / (MAX_LINE + 1);
+    // The console takes one line; the next line typed is still discarded:
+    // it would otherwise be answered before the ones that did not fit.
+    let mut buf = [0u8; MAX_LINE];
+    assert!(matches!(rx.next(&mut buf), Some(Received::Line(_))));
+    feed(&mut rx, b"status\n");
+    let got = drain(&mut rx);
+    assert_eq!(got.len(), 40);
+    assert!(got[..fit - 1].iter().all(|l| *l == line));
+    assert!(got[fit - 1..]
+        .iter()
+        .all(|l| l == "!input queue full, line discarded"));
+    assert_eq!(rx.discarded_total() as usize, 41 - fit);
+    // Drained: lines are queued again.
+    feed(&mut rx, b"status\n");
+    assert_eq!(drain(&mut rx), vec!["status"]);
+}
+
+#[test]
+fn lost_bytes_are_answered_never_silent() {
+    let mut rx: Receiver<RX_QUEUE_BYTES> = Receiver::new();
+    feed(&mut rx, b"got");
+    rx.lost();
+    feed(&mut rx, b"o 10\r\n");
+    // Even a line of which nothing but the end arrived.
+    rx.lost();
+    feed(&mut rx, b"\n");
+    assert_eq!(
+        drain(&mut rx),
+        vec![
+            "!input overrun, line discarded",
+            "!input overrun, line discarded"
+        ]
+    );
+    assert_eq!(LineError::Overrun.as_str(), "input overrun, line discarded");
+}
+
+#[test]
+fn echo_comes_before_the_line_and_is_best_effort() {
+    let mut rx: Receiver<RX_QUEUE_BYTES> = Receiver::new();
+    feed(&mut rx, b"ab");
+    assert_eq!(rx.next_echo(), None, "echo is off by default");
+    rx.set_echo(true);
+    feed(&mut rx, b"c\x08d\r");
+    let echo: Vec<u8> = std::iter::from_fn(|| rx.next_echo()).collect();
+    assert_eq!(echo, b"c\x08 \x08d\r\n");
+    assert_eq!(drain(&mut rx), vec!["abd"]);
+    // A long paste overflows the echo queue, not the line queue.
+    let long = "b".repeat(MAX_LINE);
+    feed(&mut rx, long.as_bytes());
+    feed(&mut rx, b"\r");
+    assert_eq!(drain(&mut rx), vec![long]);
+}
+
+/// The replies a console gives to `bytes`, from the line editor alone
+/// (no queue): what the receiver must reproduce, up to discarded lines.
+fn expected(bytes: &[u8]) -> Vec<String> {
+    let mut e = LineEditor::new();
+    let mut out = Vec::new();
+    for &b in bytes {
+        match e.push(b) {
+            Edit::Line(s) => out.push(s.to_string()),
+            Edit::Bad(err) => out.push(format!("!{}", err.as_str())),
+            _ => {}
+        }
+    }
+    out
+}
+
+proptest! {
+    /// Any input, taken by the console task at any moments: every line gets
+    /// exactly one reply, in order, the line itself unless it did not fit.
+    #[test]
+    fn every_line_gets_exactly_one_reply_in_order(
+        chunks in prop::collection::vec(
+            (prop::collection::vec(
+                prop_oneof![
+                    8 => 0x20u8..0x7f,
+                    2 => Just(b'\n'),
+                    1 => Just(b'\r'),
+                    1 => Just(0x08u8),
+                    1 => any::<u8>(),
+                ],
+                0..300,
+            ), 0usize..4),
+            1..40,
+        ),
+    ) {
+        // A small queue, so that it overflows often.
+        let mut rx: Receiver<256> = Receiver::new();
+        let mut all = Vec::new();
+        let mut got = Vec::new();
+        let mut buf = [0u8; MAX_LINE];
+        for (bytes, takes) in &chunks {
+            feed(&mut rx, bytes);
+            all.extend_from_slice(bytes);
+            for _ in 0..*takes {
+                match rx.next(&mut buf) {
+                    Some(Received::Line(s)) => got.push(s.to_string()),
+                    Some(Received::Bad(e)) => got.push(format!("!{}", e.as_str())),
+                    None => break,
+                }
+            }
+        }
+        got.extend(drain(&mut rx));
+        let want = expected(&all);
+        prop_assert_eq!(got.len(), want.len());
+        let discarded = "!input queue full, line discarded";
+        for (g, w) in got.iter().zip(&want) {
+            prop_assert!(g == w || g == discarded, "{:?} for {:?}", g, w);
+        }
+        prop_assert_eq!(rx.queued_bytes(), 0);
+    }
 }

@@ -108,24 +108,83 @@ fn reader_splits_a_stream_and_resynchronises_after_garbage() {
     for b in stream {
         match r.push(b) {
             Some(ReadEvent::Frame(body)) => got.push(mon.receive(body)),
-            Some(ReadEvent::Overflow) => got.push(Err(mon.overflow())),
+            Some(ReadEvent::Overflow) => got.push(mon.overflow().map_or(Ok(None), Err)),
             None => {}
         }
     }
-    assert!(matches!(got[0], Err(LinkError::Corrupt(_))));
-    assert_eq!(got[1].unwrap().seq, 0);
-    assert_eq!(got[2].unwrap().seq, 1);
-    assert_eq!(got[3].unwrap().seq, 2);
+    // The torn frame comes before the link is live: skipped, no error.
+    assert_eq!(got[0], Ok(None));
+    assert_eq!(got[1].unwrap().unwrap().seq, 0);
+    assert_eq!(got[2].unwrap().unwrap().seq, 1);
+    assert_eq!(got[3].unwrap().unwrap().seq, 2);
+    // Once live, an over-long frame is an error.
     assert_eq!(got[4], Err(LinkError::Corrupt(FrameError::Length)));
     assert_eq!(got.len(), 5);
     let c = mon.counters();
-    assert_eq!((c.good, c.corrupt, c.lost, c.late), (3, 2, 0, 0));
+    assert_eq!(
+        (c.good, c.corrupt, c.lost, c.late, c.skipped),
+        (3, 1, 0, 0, 1)
+    );
+}
+
+#[test]
+fn a_waiting_link_skips_noise_and_stale_frames_and_never_times_out() {
+    let mut mon = LinkMonitor::new();
+    assert!(!mon.is_live());
+    // However long the host takes to open its port: no timeout.
+    for _ in 0..10_000 {
+        assert_eq!(mon.tick(100), None);
+    }
+    // A banner, line noise, an over-long burst, a stale frame of an old run.
+    let mut r = FrameReader::new();
+    let mut events = 0;
+    let mut noise = b"dca-firmware ready\r\n".to_vec();
+    noise.push(0);
+    noise.extend([0xff; 3 * MAX_FRAME_LEN]);
+    noise.push(0);
+    noise.extend(wire(&sample(41)));
+    noise.push(0);
+    for b in noise {
+        match r.push(b) {
+            Some(ReadEvent::Frame(body)) => {
+                events += 1;
+                assert_eq!(mon.receive(body), Ok(None));
+            }
+            Some(ReadEvent::Overflow) => {
+                events += 1;
+                assert_eq!(mon.overflow(), None);
+            }
+            None => {}
+        }
+    }
+    assert_eq!(events, 3);
+    assert!(!mon.is_live());
+    assert_eq!(mon.counters().skipped, 3);
+    assert_eq!(mon.counters().good, 0);
+    // The first valid frame with seq 0 starts supervision.
+    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().unwrap().seq, 0);
+    assert!(mon.is_live());
+    for _ in 0..99 {
+        assert_eq!(mon.tick(100), None);
+    }
+    assert_eq!(mon.tick(100), Some(LinkError::Late));
+    // Noise is an error now.
+    assert!(matches!(
+        mon.receive(&mut b"junk".to_vec()),
+        Err(LinkError::Corrupt(_))
+    ));
+    assert!(mon.overflow().is_some());
+    // After a restart (a fault cleared, arming again) it waits again.
+    mon.restart();
+    assert!(!mon.is_live());
+    assert_eq!(mon.receive(&mut wire(&sample(5))), Ok(None));
+    assert_eq!(mon.tick(1), None);
 }
 
 #[test]
 fn monitor_counts_gaps_repeats_and_timeouts() {
     let mut mon = LinkMonitor::new();
-    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().seq, 0);
+    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().unwrap().seq, 0);
     assert_eq!(
         mon.receive(&mut wire(&sample(2))),
         Err(LinkError::Lost {
@@ -137,14 +196,14 @@ fn monitor_counts_gaps_repeats_and_timeouts() {
     assert!(mon.receive(&mut wire(&sample(0))).is_err());
     assert_eq!(mon.expected(), 1);
     mon.restart();
-    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().seq, 0);
+    assert_eq!(mon.receive(&mut wire(&sample(0))).unwrap().unwrap().seq, 0);
     // Timeout: fires once at the limit, restarts with a frame; 0 disables.
     for _ in 0..4 {
         assert_eq!(mon.tick(5), None);
     }
     assert_eq!(mon.tick(5), Some(LinkError::Late));
     assert_eq!(mon.tick(5), None);
-    assert_eq!(mon.receive(&mut wire(&sample(1))).unwrap().seq, 1);
+    assert_eq!(mon.receive(&mut wire(&sample(1))).unwrap().unwrap().seq, 1);
     for _ in 0..4 {
         assert_eq!(mon.tick(5), None);
     }

@@ -14,6 +14,7 @@ use rtic::mutex::prelude::*;
 use crate::hardware::{
     RawSample, SettingsStore, TickTimer, Watchdog, WATCHDOG_FLASH_MS, WATCHDOG_MS,
 };
+use crate::ConsoleInput;
 
 /// Where the control task's samples come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
@@ -176,8 +177,6 @@ impl Ctl {
 
 /// What the console task needs beyond the shared state.
 pub struct ConsoleState {
-    /// Echo typed characters.
-    pub echo: bool,
     /// Telemetry decimation requested (0: off); the console writes the run-log
     /// header when it goes on.
     pub telemetry: u32,
@@ -189,11 +188,12 @@ pub struct ConsoleState {
 
 /// The console's view of the machine: locks of the shared resources plus the
 /// console's own state.
-pub struct Machine<'a, C, K, W>
+pub struct Machine<'a, C, K, W, I>
 where
     C: Mutex<T = Ctl>,
     K: Mutex<T = TickTimer>,
     W: Mutex<T = Watchdog>,
+    I: Mutex<T = ConsoleInput>,
 {
     /// The shared control state.
     pub ctl: &'a mut C,
@@ -201,17 +201,20 @@ where
     pub tick: &'a mut K,
     /// The watchdog (extended around flash writes).
     pub wdg: &'a mut W,
+    /// The console's receive path (its echo flag).
+    pub input: &'a mut I,
     /// Settings storage.
     pub store: &'a mut SettingsStore,
     /// Console flags.
     pub console: &'a mut ConsoleState,
 }
 
-impl<C, K, W> Target for Machine<'_, C, K, W>
+impl<C, K, W, I> Target for Machine<'_, C, K, W, I>
 where
     C: Mutex<T = Ctl>,
     K: Mutex<T = TickTimer>,
     W: Mutex<T = Watchdog>,
+    I: Mutex<T = ConsoleInput>,
 {
     fn status(&mut self) -> Status {
         let telemetry = self.console.telemetry;
@@ -334,7 +337,7 @@ where
     }
 
     fn echo(&mut self, on: bool) {
-        self.console.echo = on;
+        self.input.lock(|i| i.set_echo(on));
     }
 }
 

@@ -13,13 +13,18 @@
 //!
 //! | task | priority | released by | period / deadline |
 //! |---|---|---|---|
-//! | `control` | 3 | ADC scan done (board), SysTick (QEMU), a HIL frame | 1 ms / [`DEADLINE_US`] |
+//! | `control` | 4 | ADC scan done (board), SysTick (QEMU), a HIL frame | 1 ms / [`DEADLINE_US`] |
 //! | `adc_done` | 3 | DMA2 stream 0 transfer complete | 1 ms / before the next scan |
 //! | `tick` | 3 | SysTick | 1 ms / 1 ms |
 //! | `hil_rx` | 3 | USART2 byte received | per byte / one byte time |
 //! | `console_rx` | 2 | USART1 byte received | per byte / one byte time |
 //! | `console` | 1 | bytes and telemetry rows | none (best effort) |
 //! | idle | 0 | - | `wfi` |
+//!
+//! `control` sits above every task that releases it, so a release is always
+//! taken before the next one can be made: two releases in a row without a tick
+//! between them (an `overrun`) mean the tick itself was late, never that an
+//! equally urgent handler happened to be served first.
 //!
 //! With the `qemu` feature the same app runs on QEMU's `netduinoplus2`
 //! (STM32F405): see the `qemu` module.
@@ -68,19 +73,21 @@ defmt::timestamp!("{=u32:ms}", UPTIME_MS.load(Ordering::Relaxed));
 /// `overrun` fault and zeroes the drive at once.
 pub const DEADLINE_US: u32 = 500;
 
-/// Capacity of the queue into the console task, events.
-pub const CONSOLE_EVENTS: usize = 48;
+/// Capacity of the telemetry queue from the control task to the console task,
+/// rows (plus one slot heapless's single-producer queue keeps free). At the
+/// fastest stream (a row every 10 ms) it covers 0.48 s of a busy console: the
+/// longest reply (`get`, about 0.15 s at 115 200 baud) with a wide margin. A
+/// row that does not fit is counted and missing from the stream (its time
+/// stamp shows the gap).
+pub const TELEMETRY_ROWS: usize = 48;
 
-/// Something for the console task.
-#[derive(Clone, Copy, Debug)]
-pub enum ConsoleEvent {
-    /// A received byte.
-    Byte(u8),
-    /// Received bytes were lost.
-    Overrun,
-    /// A telemetry row of stream `generation`.
-    Row(u8, LogRow),
-}
+/// A telemetry row of stream `generation` (rows of an older stream are not
+/// printed).
+pub type RowEvent = (u8, LogRow);
+
+/// The console's receive path: [`dca_core::console::Receiver`] sized by
+/// [`dca_core::console::RX_QUEUE_BYTES`].
+pub type ConsoleInput = dca_core::console::Receiver<{ dca_core::console::RX_QUEUE_BYTES }>;
 
 /// One encoded HIL frame for the transmitter.
 #[derive(Clone, Copy, Debug)]
@@ -150,11 +157,13 @@ impl SensorSource for qemu::SimSensors {
 #[rtic::app(device = stm32f4xx_hal::pac, dispatchers = [DCMI, HASH_RNG])]
 mod app {
     use super::{
-        hardware, machine, ConsoleEvent, ConsoleOut, FrameBytes, SensorSource as _, Sensors,
-        CONSOLE_EVENTS, DEADLINE_US, UPTIME_MS,
+        hardware, machine, ConsoleInput, ConsoleOut, FrameBytes, RowEvent, SensorSource as _,
+        Sensors, DEADLINE_US, TELEMETRY_ROWS, UPTIME_MS,
     };
     use core::fmt::Write as _;
-    use dca_core::console::{write_log_header, write_log_row, Console, Edit, LineEditor};
+    use dca_core::console::{
+        write_log_header, write_log_row, Console, Received, ECHO_BYTES, MAX_LINE,
+    };
     use dca_core::frame::{self, CommandFrame, FrameReader, ReadEvent, MAX_FRAME_LEN};
     use dca_core::settings::{Settings, BOARD_DT_S, IMAGE_LEN};
     use dca_core::supervisor::Faults;
@@ -163,13 +172,15 @@ mod app {
     use hardware::{
         ConsoleRx, ConsoleTx, HilRx, HilTx, SettingsStore, TickTimer, UsClock, Watchdog,
     };
+    use heapless::spsc::{Consumer, Producer, Queue};
     use machine::{trip, ConsoleState, Ctl, Machine, Release, Source};
-    use rtic_sync::channel::{Receiver, Sender};
-    use rtic_sync::make_channel;
+    use rtic_sync::signal::{SignalReader, SignalWriter};
     use stm32f4xx_hal::pac::Interrupt;
 
-    type EventTx = Sender<'static, ConsoleEvent, CONSOLE_EVENTS>;
-    type EventRx = Receiver<'static, ConsoleEvent, CONSOLE_EVENTS>;
+    /// Wakes the console task: rings after every received byte batch and
+    /// every queued telemetry row (a "latest only" flag, so a ring while the
+    /// console is busy is never lost).
+    type Doorbell = SignalWriter<'static, ()>;
 
     /// Resources shared between tasks.
     #[shared]
@@ -184,15 +195,20 @@ mod app {
         clock: UsClock,
         /// The local sensor source.
         sensors: Sensors,
+        /// The console's receive path (line editor and line queue), between
+        /// `console_rx` and `console`.
+        input: ConsoleInput,
     }
 
     /// Resources owned by one task.
     #[local]
     struct Local {
         drive: hardware::Drive,
-        control_events: EventTx,
+        rows_in: Producer<'static, RowEvent>,
+        rows_out: Consumer<'static, RowEvent>,
+        control_bell: Doorbell,
         console_rx: ConsoleRx,
-        rx_events: EventTx,
+        rx_bell: Doorbell,
         console_tx: ConsoleTx,
         hil_rx: HilRx,
         hil_tx: HilTx,
@@ -204,7 +220,11 @@ mod app {
     /// the stored settings (a missing or corrupt store falls back to the
     /// defaults and says so on the console), designs the controller on the
     /// board, and starts the control timer.
-    #[init(local = [buf_a: [u16; 4] = [0; 4], buf_b: [u16; 4] = [0; 4]])]
+    #[init(local = [
+        buf_a: [u16; 4] = [0; 4],
+        buf_b: [u16; 4] = [0; 4],
+        rows: Queue<RowEvent, { TELEMETRY_ROWS + 1 }> = Queue::new(),
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut devices = hardware::setup(cx.core, cx.device, (cx.local.buf_a, cx.local.buf_b));
 
@@ -241,9 +261,10 @@ mod app {
         if devices.watchdog_reset {
             trip(&mut ctl, Faults::WATCHDOG);
         }
-        let (events_tx, events_rx) = make_channel!(ConsoleEvent, CONSOLE_EVENTS);
+        let (rows_in, rows_out) = cx.local.rows.split();
+        let (bell, bell_rx) = rtic_sync::make_signal!(());
         // Spawned once, here: cannot fail.
-        console::spawn(events_rx, note).ok();
+        console::spawn(bell_rx, note).ok();
         devices.tick.start();
         devices.ticker.start();
 
@@ -258,12 +279,15 @@ mod app {
                 wdg: devices.watchdog,
                 clock: devices.clock,
                 sensors,
+                input: ConsoleInput::new(),
             },
             Local {
                 drive: devices.drive,
-                control_events: events_tx.clone(),
+                rows_in,
+                rows_out,
+                control_bell: bell.clone(),
                 console_rx: devices.console.1,
-                rx_events: events_tx,
+                rx_bell: bell,
                 console_tx: devices.console.0,
                 hil_rx: devices.hil.1,
                 hil_tx: devices.hil.0,
@@ -300,11 +324,12 @@ mod app {
     /// 0.22 ms at 921600 baud on the board, within the deadline; a separate
     /// sender task could still be finishing the previous frame when the host's
     /// next one arrives), a telemetry row every `decimation` ticks.
-    #[task(binds = EXTI0, priority = 3, shared = [ctl, clock, sensors], local = [drive, control_events, hil_tx])]
+    #[task(binds = EXTI0, priority = 4, shared = [ctl, clock, sensors], local = [drive, rows_in, control_bell, hil_tx])]
     fn control(cx: control::Context) {
         let drive = cx.local.drive;
         let hil_tx = cx.local.hil_tx;
-        let events = cx.local.control_events;
+        let rows = cx.local.rows_in;
+        let bell = cx.local.control_bell;
         (cx.shared.ctl, cx.shared.clock, cx.shared.sensors).lock(|c, clock, sensors| {
             let Some(release) = c.pending.take() else {
                 return;
@@ -365,12 +390,10 @@ mod app {
                 sup.faults().0,
             );
             if let Some(row) = row {
-                if events
-                    .try_send(ConsoleEvent::Row(c.telemetry.generation, row))
-                    .is_err()
-                {
+                if rows.enqueue((c.telemetry.generation, row)).is_err() {
                     c.telemetry.dropped = c.telemetry.dropped.saturating_add(1);
                 }
+                bell.write(());
             }
             c.alive = true;
             let elapsed = clock.now_us().wrapping_sub(c.release_us);
@@ -448,10 +471,15 @@ mod app {
                     }
                     match reader.push(b) {
                         Some(ReadEvent::Frame(body)) => match c.link.receive(body) {
-                            Ok(f) => Release::Frame(f),
+                            Ok(Some(f)) => Release::Frame(f),
+                            // Before the first valid frame: skipped, no reply.
+                            Ok(None) => continue,
                             Err(e) => Release::LinkError(e),
                         },
-                        Some(ReadEvent::Overflow) => Release::LinkError(c.link.overflow()),
+                        Some(ReadEvent::Overflow) => match c.link.overflow() {
+                            Some(e) => Release::LinkError(e),
+                            None => continue,
+                        },
                         None => continue,
                     }
                 }
@@ -462,7 +490,10 @@ mod app {
                     if c.source != Source::Hil {
                         continue;
                     }
-                    Release::LinkError(c.link.overflow())
+                    match c.link.overflow() {
+                        Some(e) => Release::LinkError(e),
+                        None => continue,
+                    }
                 }
             };
             if !c.release(release, clock.now_us()) {
@@ -472,39 +503,46 @@ mod app {
         });
     }
 
-    /// Console receiver (USART1 RXNE): queues bytes for the console task.
-    /// Deadline: one byte time (87 us at 115200 baud). A full queue drops the
-    /// byte and makes the console refuse the line.
-    #[task(binds = USART1, priority = 2, local = [console_rx, rx_events, lost: bool = false])]
-    fn console_rx(cx: console_rx::Context) {
-        let tx = cx.local.rx_events;
-        loop {
-            match cx.local.console_rx.read() {
-                Ok(b) => {
-                    if *cx.local.lost && tx.try_send(ConsoleEvent::Overrun).is_ok() {
-                        *cx.local.lost = false;
-                    }
-                    if tx.try_send(ConsoleEvent::Byte(b)).is_err() {
-                        *cx.local.lost = true;
-                    }
-                }
+    /// Console receiver (USART1 RXNE): runs the line editor on every byte and
+    /// queues finished lines for the console task (dca-core's
+    /// `console::Receiver`), so that no line end is ever lost to a busy
+    /// console. Deadline: one byte time (87 us at 115200 baud; the work is a
+    /// few hundred cycles, a line copy at most). A byte the USART lost
+    /// (overrun, framing, noise) makes the console answer that line with an
+    /// error.
+    #[task(binds = USART1, priority = 2, shared = [input], local = [console_rx, rx_bell])]
+    fn console_rx(mut cx: console_rx::Context) {
+        let rx = cx.local.console_rx;
+        let mut any = false;
+        cx.shared.input.lock(|input| loop {
+            match rx.read() {
+                Ok(b) => input.receive(b),
                 Err(nb::Error::WouldBlock) => break,
-                Err(nb::Error::Other(_)) => *cx.local.lost = true,
+                Err(nb::Error::Other(_)) => input.lost(),
             }
+            any = true;
+        });
+        if any {
+            cx.local.rx_bell.write(());
         }
     }
 
-    /// The console: line editing, commands (dca-core's `Console`), replies and
-    /// the telemetry stream, all on USART1. Lowest priority, no deadline (best
+    /// The console: commands (dca-core's `Console`), echo, replies and the
+    /// telemetry stream, all on USART1. Lowest priority, no deadline (best
     /// effort): writes block on the USART, and the MPC re-design after a
-    /// parameter change runs here.
-    #[task(priority = 1, shared = [ctl, tick, wdg], local = [console_tx, store, console])]
-    async fn console(mut cx: console::Context, mut events: EventRx, note: Option<&'static str>) {
+    /// parameter change runs here. Each pass answers one line, then writes the
+    /// queued telemetry rows, so that a paste of many lines does not hold the
+    /// stream up for long; it sleeps on the doorbell when nothing is left.
+    #[task(priority = 1, shared = [ctl, tick, wdg, input], local = [console_tx, store, console, rows_out])]
+    async fn console(
+        mut cx: console::Context,
+        mut doorbell: SignalReader<'static, ()>,
+        note: Option<&'static str>,
+    ) {
         let mut out = ConsoleOut(cx.local.console_tx);
         let tx = &mut out;
-        let mut editor = LineEditor::new();
+        let rows = cx.local.rows_out;
         let mut state = ConsoleState {
-            echo: false,
             telemetry: 0,
             generation: 0,
             header_due: false,
@@ -517,58 +555,60 @@ mod app {
             let _ = tx.write_str(why);
             let _ = tx.write_str(": factory settings in use\r\n");
         }
-        while let Ok(ev) = events.recv().await {
-            match ev {
-                ConsoleEvent::Byte(b) => match editor.push(b) {
-                    Edit::None => {}
-                    Edit::Echo(c) => {
-                        if state.echo {
-                            let _ = tx.write_char(c as char);
-                        }
+        loop {
+            // Everything to echo and the next line, in one short lock.
+            let mut line = [0u8; MAX_LINE];
+            let mut echo = [0u8; ECHO_BYTES];
+            let (n_echo, got) = {
+                let (line, echo) = (&mut line, &mut echo);
+                cx.shared.input.lock(move |input| {
+                    let mut n = 0;
+                    for slot in echo.iter_mut() {
+                        let Some(b) = input.next_echo() else { break };
+                        *slot = b;
+                        n += 1;
                     }
-                    Edit::Erase => {
-                        if state.echo {
-                            let _ = tx.write_str("\x08 \x08");
-                        }
+                    (n, input.next(line))
+                })
+            };
+            // Echo is printable ASCII, backspace, CR and LF: always UTF-8.
+            let echoed = echo.get(..n_echo).unwrap_or(&[]);
+            let _ = tx.write_str(core::str::from_utf8(echoed).unwrap_or(""));
+            let idle = got.is_none();
+            match got {
+                Some(Received::Line(line)) => {
+                    #[cfg(feature = "qemu")]
+                    if line == "quit" {
+                        let _ = tx.write_str("ok\r\n");
+                        crate::qemu::exit(0);
                     }
-                    Edit::Bad(e) => {
-                        if state.echo {
-                            let _ = tx.write_str("\r\n");
-                        }
-                        cx.local.console.reject(e, tx);
-                    }
-                    Edit::Line(line) => {
-                        if state.echo {
-                            let _ = tx.write_str("\r\n");
-                        }
-                        #[cfg(feature = "qemu")]
-                        if line == "quit" {
-                            let _ = tx.write_str("ok\r\n");
-                            crate::qemu::exit(0);
-                        }
-                        let mut machine = Machine {
-                            ctl: &mut cx.shared.ctl,
-                            tick: &mut cx.shared.tick,
-                            wdg: &mut cx.shared.wdg,
-                            store: cx.local.store,
-                            console: &mut state,
-                        };
-                        cx.local.console.execute(line, &mut machine, tx);
-                        if state.header_due {
-                            state.header_due = false;
-                            let kind = cx.local.console.settings().controller.kind;
-                            write_log_header(tx, kind.name());
-                        }
-                    }
-                },
-                ConsoleEvent::Overrun => editor.overrun(),
-                ConsoleEvent::Row(generation, row) => {
-                    if state.telemetry != 0 && generation == state.generation {
-                        let mut line: Buf<128> = Buf::new();
-                        write_log_row(&mut line, &row);
-                        let _ = tx.write_str(line.as_str());
+                    let mut machine = Machine {
+                        ctl: &mut cx.shared.ctl,
+                        tick: &mut cx.shared.tick,
+                        wdg: &mut cx.shared.wdg,
+                        input: &mut cx.shared.input,
+                        store: cx.local.store,
+                        console: &mut state,
+                    };
+                    cx.local.console.execute(line, &mut machine, tx);
+                    if state.header_due {
+                        state.header_due = false;
+                        let kind = cx.local.console.settings().controller.kind;
+                        write_log_header(tx, kind.name());
                     }
                 }
+                Some(Received::Bad(e)) => cx.local.console.reject(e, tx),
+                None => {}
+            }
+            while let Some((generation, row)) = rows.dequeue() {
+                if state.telemetry != 0 && generation == state.generation {
+                    let mut text: Buf<128> = Buf::new();
+                    write_log_row(&mut text, &row);
+                    let _ = tx.write_str(text.as_str());
+                }
+            }
+            if idle {
+                doorbell.wait().await;
             }
         }
     }
