@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Firmware CI: release build, clippy on the target, size budget, the instruction count
 # of one control tick (unicorn engine, budget for the worst MPC-ESO tick), and (when
-# QEMU is installed) the emulated build on netduinoplus2: a scripted console session,
-# fault injection over the HIL link, and the paper's four closed-loop scenarios through
-# the emulated firmware, bit-identical to the software loop.
+# QEMU is installed) the emulated build on netduinoplus2 with its USARTs on
+# pseudo-terminals (ttys, as a USB-serial board appears): a scripted console session
+# with bursts, fault injection over the HIL link, `host-sim hil --port --console`,
+# `host-sim console --script --capture` read by `host-sim gap`, and the paper's four
+# closed-loop scenarios through the emulated firmware, bit-identical to the software loop.
 #
 # Assumes `rustup target add thumbv7em-none-eabihf` and python3 with pip (the count
 # installs `unicorn pyelftools` if they are missing). Uses the cargo aliases of
@@ -73,9 +75,9 @@ fi
 step "qemu build (netduinoplus2)"
 cargo fw-qemu
 
-step "console driven as a user would (garbage, over-long lines, every reply checked)"
+step "console driven as a user would (garbage, over-long lines, bursts, every reply checked)"
 timeout 300 python3 firmware/qemu/console_check.py "$QEMU_ELF"
 
-step "processor in the loop: faults zero the drive; the paper's four scenarios bit-identical to software"
+step "processor in the loop over ttys: faults zero the drive; hil --port/--console; console capture -> gap; the paper's four scenarios bit-identical to software"
 DCA_QEMU_ELF="$PWD/$QEMU_ELF" timeout 900 \
     cargo test -p host-sim --test hil_pil -- --ignored --nocapture --test-threads 1

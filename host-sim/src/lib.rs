@@ -4,6 +4,7 @@
 
 pub mod batch;
 pub mod bench;
+pub mod board;
 pub mod config;
 pub mod effects;
 pub mod gains;

@@ -96,6 +96,13 @@ enum Command {
         /// Serial device of the board's console: the run sets the board up itself.
         #[arg(long, requires = "port")]
         console: Option<String>,
+        /// Longest wait for a reply on the HIL link, s.
+        #[arg(long, default_value_t = 2.0)]
+        timeout: f64,
+        /// Set the firmware's link timeout (`hil.timeout_ms`) through the console
+        /// before arming (needs --console or --qemu; default: the board's setting).
+        #[arg(long)]
+        link_timeout_ms: Option<u32>,
         /// Start the emulated firmware (QEMU netduinoplus2) instead of a board.
         #[arg(long)]
         qemu: bool,
@@ -115,6 +122,33 @@ enum Command {
         /// Where to write the run log (CSV).
         #[arg(long)]
         log: PathBuf,
+    },
+    /// The board's command console from this terminal (interfaces.md section 5):
+    /// interactive with line editing and history, or a script; the telemetry
+    /// stream captured as a run log.
+    Console {
+        /// Serial device of the board's console (USART1), e.g. /dev/ttyUSB0.
+        #[arg(long, conflicts_with = "qemu", required_unless_present = "qemu")]
+        port: Option<String>,
+        /// Baud rate of the console.
+        #[arg(long, default_value_t = 115_200, requires = "port")]
+        baud: u32,
+        /// Start the emulated firmware (QEMU netduinoplus2) instead of a board.
+        #[arg(long)]
+        qemu: bool,
+        /// The emulated firmware's ELF (default: built with `cargo fw-qemu` if missing).
+        #[arg(long, requires = "qemu")]
+        elf: Option<PathBuf>,
+        /// Send the lines of FILE one by one, each waiting for its reply
+        /// (blank lines and `#` comments skipped; `sleep S` pauses S seconds).
+        #[arg(long)]
+        script: Option<PathBuf>,
+        /// Write the telemetry stream (after `telemetry on`) to this run log.
+        #[arg(long)]
+        capture: Option<PathBuf>,
+        /// Longest wait for a reply, s.
+        #[arg(long, default_value_t = 10.0)]
+        timeout: f64,
     },
     /// Sim-to-real gap diagnosis of recorded run logs (interfaces.md section 2).
     Gap {
@@ -226,6 +260,15 @@ fn parse_seeds(s: &str) -> Result<Vec<u64>, String> {
     }
 }
 
+/// A positive, finite number of seconds.
+fn seconds(s: f64, what: &str) -> Result<std::time::Duration, String> {
+    if s.is_finite() && s > 0.0 && s <= 3600.0 {
+        Ok(std::time::Duration::from_secs_f64(s))
+    } else {
+        Err(format!("{what} {s}: expected seconds in (0, 3600]"))
+    }
+}
+
 /// The emulated firmware's ELF: `elf`, or the default path, built if missing.
 fn qemu_elf(elf: Option<PathBuf>) -> Result<PathBuf, String> {
     if let Some(e) = elf {
@@ -315,6 +358,8 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::Hil {
             port,
             console,
+            timeout,
+            link_timeout_ms,
             qemu,
             elf,
             what,
@@ -326,15 +371,20 @@ fn run(cli: Cli) -> Result<(), String> {
             let spec = host_sim::run::resolve(&what.request(seed, None))?;
             let trace = match (port, qemu) {
                 (Some(port), false) => {
+                    if link_timeout_ms.is_some() && console.is_none() {
+                        return Err("--link-timeout-ms needs --console (it is set there)".into());
+                    }
                     let opts = hil::SerialOptions {
                         console,
+                        timeout: seconds(timeout, "--timeout")?,
+                        link_timeout_ms,
                         ..Default::default()
                     };
                     hil::run_hil_serial(&spec, &port, &opts).map_err(|e| e.to_string())?
                 }
                 (None, true) => {
                     let elf = qemu_elf(elf)?;
-                    hil::run_hil_qemu(&spec, &elf, &hil::QemuOptions::default())
+                    hil::run_hil_qemu(&spec, &elf, &hil::QemuOptions::default(), link_timeout_ms)
                         .map_err(|e| e.to_string())?
                 }
                 _ => {
@@ -366,6 +416,47 @@ fn run(cli: Cli) -> Result<(), String> {
                         ))
                     }
                 }
+            }
+            Ok(())
+        }
+        Command::Console {
+            port,
+            baud,
+            qemu,
+            elf,
+            script,
+            capture,
+            timeout,
+        } => {
+            use host_sim::board::session::{parse_script, run_session, SessionOptions, Target};
+            let script = match &script {
+                Some(p) => {
+                    let text =
+                        std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+                    Some(parse_script(&text, &p.display().to_string())?)
+                }
+                None => None,
+            };
+            let target = match (port, qemu) {
+                (Some(p), false) => Target::Port(p, baud),
+                (None, true) => Target::Qemu(qemu_elf(elf)?, Default::default()),
+                _ => return Err("give --port DEVICE (a board) or --qemu".into()),
+            };
+            let report = run_session(&SessionOptions {
+                target,
+                script,
+                capture,
+                timeout: seconds(timeout, "--timeout")?,
+            })
+            .map_err(|e| e.to_string())?;
+            if let Some(p) = &report.capture_problem {
+                return Err(p.clone());
+            }
+            if report.errors > 0 {
+                return Err(format!(
+                    "{} of {} replies were errors",
+                    report.errors, report.sent
+                ));
             }
             Ok(())
         }

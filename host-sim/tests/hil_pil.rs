@@ -1,21 +1,34 @@
-//! Processor-in-the-loop: the paper's closed-loop scenarios through the emulated
-//! firmware (QEMU netduinoplus2), bit-identical to the software loop.
+//! Processor-in-the-loop: the emulated firmware (QEMU netduinoplus2) with its
+//! USARTs on pseudo-terminals, reached the way a board is reached over
+//! USB-serial ttys: the paper's closed-loop scenarios bit-identical to the
+//! software loop, `host-sim hil --port --console` and `host-sim console
+//! --script --capture` as a user runs them, and fault injection on the link.
 //!
 //! Needs `qemu-system-arm` and the `qemu` build of the firmware (`cargo fw-qemu`);
 //! `.ci/firmware.sh` runs these with `--ignored`. The ELF is taken from
 //! `DCA_QEMU_ELF`, by default `target/qemu/thumbv7em-none-eabihf/firmware/dca-firmware`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Duration;
 
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use dca_core::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
 use dca_core::supervisor::{Faults, State};
-use host_sim::hil::{run_hil_qemu, run_software, Emulator, QemuOptions};
+use host_sim::board::console::{ConsoleClient, CONSOLE_BAUD};
+use host_sim::board::port::SerialLink;
+use host_sim::hil::{run_hil_qemu, run_software, Emulator, QemuOptions, HIL_BAUD};
 use host_sim::plant::Plant;
+use host_sim::runlog::RunLog;
 use host_sim::scenario::Scenario;
 use host_sim::sensors::SensorMode;
 use host_sim::sim::RunSpec;
+
+/// The firmware's link timeout for runs that test bit identity, not timing:
+/// the emulated board keeps time by the host's clock, and on a loaded machine
+/// a round trip can take far longer than the factory 100 ms (up to 0.9 s
+/// measured). The factory timeout itself is tested by the fault injection.
+const LINK_TIMEOUT_MS: u32 = 5000;
 
 fn elf() -> PathBuf {
     std::env::var_os("DCA_QEMU_ELF")
@@ -48,7 +61,8 @@ fn paper_scenarios_through_the_emulated_firmware_are_bit_identical() {
     {
         let s = spec(name, ControllerKind::MpcEso);
         let t0 = std::time::Instant::now();
-        let emulated = run_hil_qemu(&s, &elf(), &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let emulated = run_hil_qemu(&s, &elf(), &opts, Some(LINK_TIMEOUT_MS))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         let soft = run_software(&s).unwrap();
         let n = emulated.rows.len();
         assert_eq!(n, soft.rows.len());
@@ -73,14 +87,17 @@ fn paper_scenarios_through_the_emulated_firmware_are_bit_identical() {
     }
 }
 
-/// Send one raw frame body (already encoded, delimiter included) and read the reply.
-fn exchange(link: &mut std::net::TcpStream, bytes: &[u8]) -> CommandFrame {
-    use std::io::{Read, Write};
-    link.write_all(bytes).unwrap();
+/// Send one raw frame (already encoded, delimiter included) and read the reply.
+fn exchange(link: &mut SerialLink, bytes: &[u8]) -> CommandFrame {
+    link.send(bytes).unwrap();
     let mut body = Vec::new();
     let mut b = [0u8; 1];
+    let until = std::time::Instant::now() + Duration::from_secs(10);
     loop {
-        link.read_exact(&mut b).unwrap();
+        assert!(std::time::Instant::now() < until, "no reply");
+        if link.read_some(&mut b).unwrap() == 0 {
+            continue;
+        }
         if b[0] == 0 {
             if body.is_empty() {
                 continue;
@@ -110,17 +127,20 @@ fn at_rest(seq: u32) -> SampleFrame {
     }
 }
 
+/// The emulator and a console client on its pty.
+fn emulator() -> (Emulator, ConsoleClient) {
+    let opts = QemuOptions::default();
+    let emu = Emulator::start(&elf(), &opts).unwrap();
+    let link = SerialLink::open(&emu.console_tty, CONSOLE_BAUD, Duration::from_millis(50)).unwrap();
+    let console = ConsoleClient::connect(link, Duration::from_secs(10)).unwrap();
+    (emu, console)
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
 fn link_and_sensor_faults_force_the_drive_to_zero() {
-    let opts = QemuOptions {
-        timeout: Duration::from_secs(10),
-        ..QemuOptions::default()
-    };
-    let mut emu = Emulator::start(&elf(), &opts).unwrap();
-    let mut link = emu.link.take().unwrap();
-    link.set_read_timeout(Some(Duration::from_secs(10)))
-        .unwrap();
+    let (emu, mut console) = emulator();
+    let mut link = SerialLink::open(&emu.hil_tty, HIL_BAUD, Duration::from_millis(50)).unwrap();
     let fault = State::Fault as u8;
     // Each case: arm in HIL mode, one good frame (the drive moves), then the
     // bad one: the reply carries the fault and a zero command.
@@ -169,10 +189,21 @@ fn link_and_sensor_faults_force_the_drive_to_zero() {
         ),
     ];
     // The PI law commands on its first tick (MPC-ESO's TD delays the first move).
-    emu.console.must("controller pid").unwrap();
-    emu.console.must("hil on").unwrap();
-    for (what, bad, bit) in cases {
-        emu.console.must("arm").unwrap();
+    console.must("controller pid").unwrap();
+    console.must("hil on").unwrap();
+    for (i, (what, bad, bit)) in cases.into_iter().enumerate() {
+        if i == 1 {
+            // The start-up (a long pause, noise) was checked at the factory
+            // timeout; the other cases test other faults, not timing.
+            console
+                .must(&format!("set hil.timeout_ms {LINK_TIMEOUT_MS}"))
+                .unwrap();
+        }
+        console.must("arm").unwrap();
+        // Armed and waiting: a long pause and noise before the first frame
+        // trip nothing, and get no reply.
+        std::thread::sleep(Duration::from_millis(300));
+        link.send(b"dca-firmware ready\r\n\0\xff\xfe\0").unwrap();
         let good = exchange(&mut link, &encoded(&at_rest(0)));
         assert_eq!(good.seq, 0, "{what}");
         assert_eq!(good.faults, 0, "{what}");
@@ -187,20 +218,150 @@ fn link_and_sensor_faults_force_the_drive_to_zero() {
         // Latched: the next good frame is answered with zero too.
         let r = exchange(&mut link, &encoded(&at_rest(r.seq.max(1) + 1)));
         assert_eq!(r.v_cmd_mps, 0.0, "{what}: fault not latched");
-        let shown = emu.console.must("fault").unwrap();
+        let shown = console.must("fault").unwrap().text();
         assert!(shown.starts_with("faults="), "{shown}");
         assert!(!shown.starts_with("faults=none"), "{what}: {shown}");
         assert!(
-            emu.console.command("arm").unwrap().starts_with("error:"),
+            !console.command("arm").unwrap().is_ok(),
             "{what}: armed in fault"
         );
-        emu.console.must("clear").unwrap();
+        console.must("clear").unwrap();
     }
-    let shown = emu.console.must("fault").unwrap();
+    // Lateness once live, at the factory timeout: a frame, then silence.
+    console.must("set hil.timeout_ms 100").unwrap();
+    console.must("arm").unwrap();
+    assert_eq!(exchange(&mut link, &encoded(&at_rest(0))).faults, 0);
+    std::thread::sleep(Duration::from_millis(400));
+    let r = exchange(&mut link, &encoded(&at_rest(1)));
+    assert_eq!(r.v_cmd_mps, 0.0, "late: drive not zeroed");
     assert!(
-        shown.contains("lost=") && !shown.contains("lost=0 "),
+        Faults(r.faults).has(Faults::HIL_LINK),
+        "late: {:#x}",
+        r.faults
+    );
+    console.must("clear").unwrap();
+    let shown = console.must("fault").unwrap().text();
+    assert!(
+        shown.contains("lost=") && !shown.contains("lost=0 ") && !shown.contains("late=0 "),
         "{shown}"
     );
-    emu.console.must("hil off").unwrap();
-    emu.quit().unwrap();
+    assert!(
+        !shown.contains("skipped=0"),
+        "noise before the first frame: {shown}"
+    );
+    console.must("hil off").unwrap();
+    emu.quit(&mut console).unwrap();
+}
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+/// The drive commands of a run log, m/s.
+fn commands(p: &Path) -> Vec<f64> {
+    RunLog::read(p)
+        .unwrap()
+        .channel("vcmd_mps")
+        .unwrap()
+        .to_vec()
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn hil_over_the_serial_ports_matches_the_simulated_run() {
+    let dir = std::env::temp_dir().join(format!("dca-hil-tty-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (scenario, controller) in [("step", "pid"), ("stepload", "mpc-eso")] {
+        // A freshly booted emulated board, on its ttys; factory settings but
+        // the link timeout (see LINK_TIMEOUT_MS).
+        let (emu, console) = emulator();
+        drop(console);
+        let hil_log = dir.join(format!("{scenario}-hil.csv"));
+        let out = host_sim()
+            .args(["hil", "--port", &emu.hil_tty, "--console", &emu.console_tty])
+            .args(["--link-timeout-ms", &LINK_TIMEOUT_MS.to_string()])
+            .args([
+                "--scenario",
+                scenario,
+                "--controller",
+                controller,
+                "--compare",
+            ])
+            .arg("--log")
+            .arg(&hil_log)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{scenario}/{controller}: {err}");
+        assert!(err.contains("bit-identical"), "{err}");
+        let sim_log = dir.join(format!("{scenario}-run.csv"));
+        let out = host_sim()
+            .args(["run", "--scenario", scenario, "--controller", controller])
+            .arg("--log")
+            .arg(&sim_log)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        let (h, s) = (commands(&hil_log), commands(&sim_log));
+        assert_eq!(h.len(), s.len(), "{scenario}: every tick present");
+        let worst = h
+            .iter()
+            .zip(&s)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= 1e-6,
+            "{scenario}/{controller}: commands differ by {worst} m/s"
+        );
+        println!("{scenario}/{controller}: {} ticks over ttys, max |dv| {worst:e} m/s against `host-sim run`", h.len());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
+    let dir = std::env::temp_dir().join(format!("dca-capture-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The script the documentation shows.
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/scripts/move.txt");
+    let run = dir.join("run.csv");
+    let out = host_sim()
+        .args(["console", "--qemu", "--elf"])
+        .arg(elf())
+        .arg("--script")
+        .arg(&script)
+        .arg("--capture")
+        .arg(&run)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "{err}\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let log = RunLog::read(&run).unwrap();
+    // The emulator's clock runs slower than the wall clock on a loaded machine,
+    // so the script's sleeps give fewer rows there: ask for a run, not a count.
+    assert!(log.len() > 100, "{} rows", log.len());
+    assert!((log.dt_s() - 0.01).abs() < 1e-12, "step {}", log.dt_s());
+    let xi = log.channel("xi_m").unwrap();
+    let top = xi.iter().cloned().fold(f64::MIN, f64::max);
+    assert!(top > 0.01, "the piston should move towards 20 mm: {top}");
+    let out = host_sim()
+        .args(["gap", "--fit"])
+        .arg(&run)
+        .arg("--check")
+        .arg(&run)
+        .arg("--json")
+        .arg(dir.join("gap.json"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "gap: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
