@@ -143,10 +143,17 @@ pub fn encode<T: Serialize>(msg: &T, out: &mut [u8]) -> Result<usize, FrameError
 }
 
 /// Decode one frame given without its `0x00` delimiter. The buffer is decoded
-/// in place (its contents are destroyed).
-pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameError> {
+/// in place (its contents are destroyed). Only what [`encode`] writes is
+/// accepted: a payload that decodes but is not the canonical encoding of its
+/// message (postcard reads an over-long varint such as `80 00` for 0) is
+/// refused as [`FrameError::Payload`], even with a valid CRC.
+pub fn decode<'a, T: Deserialize<'a> + Serialize>(frame: &'a mut [u8]) -> Result<T, FrameError> {
     if frame.len() > MAX_FRAME_LEN {
         return Err(FrameError::Length);
+    }
+    // A body never holds the delimiter: what follows one is another frame.
+    if frame.contains(&0) {
+        return Err(FrameError::Cobs);
     }
     let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
     if n < 3 {
@@ -156,11 +163,15 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameErr
     if CRC16.checksum(payload) != u16::from_le_bytes([crc[0], crc[1]]) {
         return Err(FrameError::Crc);
     }
-    let (msg, rest) = postcard::take_from_bytes(payload).map_err(|_| FrameError::Payload)?;
+    let (msg, rest) = postcard::take_from_bytes::<T>(payload).map_err(|_| FrameError::Payload)?;
     if !rest.is_empty() {
         return Err(FrameError::Payload);
     }
-    Ok(msg)
+    let mut canonical = [0u8; MAX_PAYLOAD];
+    match postcard::to_slice(&msg, &mut canonical) {
+        Ok(c) if *c == *payload => Ok(msg),
+        _ => Err(FrameError::Payload),
+    }
 }
 
 /// `cobs::decode_in_place` (0.3) without its panic paths, which would link the

@@ -434,6 +434,22 @@ pub fn layout_crc() -> u32 {
     d.finalize()
 }
 
+/// `v` (within `[lo, hi]`) as the `f32` it is stored as, kept within
+/// `[lo, hi]`: a bound that is not an `f32` (1e-4, 1e-3, ...) can round to
+/// the `f32` just outside it, which the range check of the stored image
+/// would then refuse; the neighbouring `f32` inside is taken instead.
+fn f32_within(v: f64, lo: f64, hi: f64) -> f64 {
+    let x = v as f32;
+    let x = if (x as f64) < lo {
+        x.next_up()
+    } else if (x as f64) > hi {
+        x.next_down()
+    } else {
+        x
+    };
+    x as f64
+}
+
 fn kind_code(k: ControllerKind) -> u8 {
     ControllerKind::ALL
         .iter()
@@ -483,12 +499,17 @@ impl Settings {
     }
 
     fn set_checked(&mut self, p: &Param, v: f64) -> Result<(), SettingsError> {
-        if !(v >= p.min.value() && v <= p.max.value()) {
+        let (lo, hi) = (p.min.value(), p.max.value());
+        if !(v >= lo && v <= hi) {
             return Err(SettingsError::Range);
         }
         if matches!(p.kind, ParamKind::Int | ParamKind::Bool) && libm::trunc(v) != v {
             return Err(SettingsError::NotInteger);
         }
+        let v = match p.kind {
+            ParamKind::F32 => f32_within(v, lo, hi),
+            _ => v,
+        };
         match p.index().and_then(|i| field(self, i)) {
             Some(f) => f.set(v),
             None => return Err(SettingsError::UnknownName),
@@ -504,7 +525,8 @@ impl Settings {
     }
 
     /// A copy with `name` set to `v`, range-checked, validated as a whole
-    /// (see [`Settings::validate`]); `self` is never changed.
+    /// (see [`Settings::validate`]); `self` is never changed. An `f32`
+    /// setting stores the nearest `f32` within its range.
     pub fn with(&self, name: &str, v: f64) -> Result<(Self, Controller), SettingsError> {
         let p = find(name).ok_or(SettingsError::UnknownName)?;
         let mut s = *self;
@@ -560,7 +582,9 @@ impl Settings {
     }
 
     /// Read an image: format, checksum, every value's range and the whole
-    /// result are checked; on any failure nothing is returned.
+    /// result are checked, and the image must be exactly what
+    /// [`Settings::to_image`] writes for the result (bytes past
+    /// [`IMAGE_LEN`] are not read); on any failure nothing is returned.
     pub fn from_image(img: &[u8]) -> Result<(Self, Controller), SettingsError> {
         if img.len() < IMAGE_LEN
             || img[0..4] != MAGIC
@@ -586,7 +610,94 @@ impl Settings {
             b.copy_from_slice(&img[at..at + 8]);
             s.set_checked(p, f64::from_le_bytes(b))?;
         }
+        // Only what `to_image` writes is read: non-zero padding, an `f32`
+        // setting stored with more precision than an `f32`, or a whole number
+        // stored as -0 is another format, not these settings.
+        if img.get(..IMAGE_LEN) != Some(&s.to_image()[..]) {
+            return Err(SettingsError::Format);
+        }
         let c = s.validate()?;
         Ok((s, c))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn reseal(img: &mut [u8; IMAGE_LEN]) {
+        let n = IMAGE_LEN - 4;
+        let crc = CRC32.checksum(&img[..n]);
+        img[n..].copy_from_slice(&crc.to_le_bytes());
+    }
+
+    fn with_value(name: &str, v: f64) -> [u8; IMAGE_LEN] {
+        let i = PARAMS.iter().position(|p| p.name == name).unwrap();
+        let mut img = Settings::default().to_image();
+        img[HEADER_LEN + 8 * i..][..8].copy_from_slice(&v.to_le_bytes());
+        reseal(&mut img);
+        img
+    }
+
+    /// Found by fuzzing the console: `set td.h0_s 0.0001` stored the `f32`
+    /// just below the bound 1e-4, so `store` wrote an image that `load` (and
+    /// the next boot) refused as out of range.
+    #[test]
+    fn f32_settings_at_a_bound_stay_in_range_and_load_back() {
+        for (name, v) in [
+            ("td.h0_s", 1e-4),
+            ("limits.v_max_mps", 1e-4),
+            ("fuzzy.e_span_m", 1e-6),
+            ("cal.encoder.gain", 1e-3),
+            ("cal.encoder.gain", -1e-3),
+        ] {
+            let (s, _) = Settings::default().with(name, v).unwrap();
+            let p = find(name).unwrap();
+            let got = p.get(&s);
+            assert!(
+                got >= p.min.value() && got <= p.max.value(),
+                "{name} = {got:e}"
+            );
+            // At most one f32 step away.
+            assert!(
+                (got - v).abs() <= v.abs() * f32::EPSILON as f64,
+                "{name} = {got:e}"
+            );
+            let (back, _) = Settings::from_image(&s.to_image()).unwrap();
+            assert_eq!(back, s, "{name}");
+        }
+        // Values inside the range keep their nearest f32.
+        let (s, _) = Settings::default().with("pid.kp", 0.1).unwrap();
+        assert_eq!(s.controller.pid.kp, 0.1f32);
+    }
+
+    /// Found by fuzzing the image: images `to_image` never writes were read.
+    #[test]
+    fn only_canonical_images_are_read() {
+        let mut padding = Settings::default().to_image();
+        padding[13] = 1;
+        reseal(&mut padding);
+        assert_eq!(
+            Settings::from_image(&padding).unwrap_err(),
+            SettingsError::Format
+        );
+        // An f32 setting with more precision than an f32.
+        assert_eq!(
+            Settings::from_image(&with_value("pid.kp", 0.1)).unwrap_err(),
+            SettingsError::Format
+        );
+        let (s, _) = Settings::from_image(&with_value("pid.kp", 0.1f32 as f64)).unwrap();
+        assert_eq!(s.controller.pid.kp, 0.1f32);
+        // A whole number stored as -0.
+        assert_eq!(
+            Settings::from_image(&with_value("hil.timeout_ms", -0.0)).unwrap_err(),
+            SettingsError::Format
+        );
+        let (s, _) = Settings::from_image(&with_value("hil.timeout_ms", 0.0)).unwrap();
+        assert_eq!(s.hil_timeout_ms, 0);
+        // Bytes past the image are not read.
+        let mut longer = Settings::default().to_image().to_vec();
+        longer.extend_from_slice(&[0xff; 8]);
+        assert!(Settings::from_image(&longer).is_ok());
     }
 }

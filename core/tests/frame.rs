@@ -89,6 +89,11 @@ fn truncated_and_padded_frames_are_refused() {
     assert!(decode::<SampleFrame>(&mut out[..n - 1]).is_err());
     let mut long = vec![1u8; MAX_FRAME_LEN + 1];
     assert_eq!(decode::<SampleFrame>(&mut long), Err(FrameError::Length));
+    // A body with a delimiter inside is not one frame, even if its start is.
+    let mut two = wire(&sample(3));
+    two.push(0);
+    two.extend([7, 7, 7]);
+    assert_eq!(decode::<SampleFrame>(&mut two), Err(FrameError::Cobs));
 }
 
 #[test]

@@ -46,8 +46,11 @@ impl SweepParam {
                     .ok_or_else(|| format!("'{path}': '{v}' is not a finite number"))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        // Check the path now: one probe override must parse.
-        overrides(&[(path.to_string(), values[0])])?;
+        // Check the path and every value now (each run applies one value;
+        // e.g. a horizon must be a whole number).
+        for v in &values {
+            overrides(&[(path.to_string(), *v)])?;
+        }
         Ok(Self {
             path: path.to_string(),
             values,
@@ -220,6 +223,10 @@ mod tests {
         let e = SweepParam::parse("eso.beta9=1").unwrap_err();
         assert!(e.contains("beta9"), "{e}");
         assert!(SweepParam::parse("mpc.np=6.5").is_err());
+        // Found by fuzzing: only the first value was checked, so a sweep
+        // started and then refused its later runs.
+        let e = SweepParam::parse("mpc.nc=2,4.5").unwrap_err();
+        assert!(e.contains("whole number"), "{e}");
     }
 
     #[test]

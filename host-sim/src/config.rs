@@ -97,8 +97,15 @@ fn line_of(text: &str, offset: usize) -> usize {
 fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> Result<T, FileError> {
     toml::from_str(text).map_err(|e: toml::de::Error| {
         let line = e.span().map(|s| line_of(text, s.start));
-        // The message names the key for unknown or mistyped fields.
-        let message = e.message().trim().to_string();
+        // The message names the key for unknown or mistyped fields. The
+        // parser gives no message when the text ends where a value is due.
+        let message = match e.message().trim() {
+            "" if e.span().is_some_and(|s| s.start >= text.trim_end().len()) => {
+                "unexpected end of file: a value is missing".to_string()
+            }
+            "" => "invalid TOML".to_string(),
+            m => m.to_string(),
+        };
         let field = message
             .split('`')
             .nth(1)
@@ -239,7 +246,12 @@ pub struct ConfigFile {
 impl ConfigFile {
     /// Read a configuration file.
     pub fn read(path: &Path) -> Result<Self, FileError> {
-        parse(&read(path)?, &path.display().to_string())
+        Self::parse_str(&read(path)?, &path.display().to_string())
+    }
+
+    /// Parse configuration text; `file` names it in errors.
+    pub fn parse_str(text: &str, file: &str) -> Result<Self, FileError> {
+        parse(text, file)
     }
 
     /// The preset named in the file (default `paper`).
@@ -542,8 +554,20 @@ impl ScenarioFile {
                 format!("{d} s: must be in (0, 3600]"),
             ));
         }
+        // Finite parameters can still give infinite or NaN values within
+        // the run (an overflowing amplitude, frequency or slope).
         let build = |s: &Spanned<SignalSpec>, field: &str| {
-            s.get_ref().build().map_err(|m| at(s.span(), field, m))
+            let sig = s.get_ref().build().map_err(|m| at(s.span(), field, m))?;
+            if !sig.is_finite_over(0.0, d) {
+                return Err(at(
+                    s.span(),
+                    field,
+                    format!(
+                        "not finite within 0 to {d} s: a value, frequency or slope is too large"
+                    ),
+                ));
+            }
+            Ok(sig)
         };
         let command = match (&f.reference, &f.open_loop) {
             (Some(r), None) => Command::Reference(build(r, "reference")?),
@@ -676,5 +700,43 @@ preset = "fast"
         assert_eq!(e.line, Some(2), "{e}");
         let bad: ConfigFile = parse("preset = \"slow\"\n", "c.toml").unwrap();
         assert!(bad.preset("c.toml").is_err());
+    }
+
+    /// Found while fuzzing: finite parameters whose signal overflows within
+    /// the run were accepted (a 1e308 Hz sine is NaN at every tick).
+    #[test]
+    fn signals_that_overflow_within_the_run_are_refused() {
+        let head = "duration_s = 10.0\n[reference]\ntype = \"constant\"\nvalue = 0.05\n[load]\n";
+        for load in [
+            "type = \"sine\"\namplitude = 1.0\nfrequency_hz = 1e308\n",
+            "type = \"cosine\"\nbias = 1e308\namplitude = 1e308\nfrequency_hz = 1.0\n",
+            "type = \"ramp\"\nstart = 1e308\nslope_per_s = 1e307\n",
+        ] {
+            let e = ScenarioFile::load_str(&format!("{head}{load}"), "s.toml", "s").unwrap_err();
+            assert_eq!((e.line, e.field.as_deref()), (Some(5), Some("load")), "{e}");
+            assert!(e.message.contains("not finite"), "{e}");
+        }
+        let ok = format!("{head}type = \"ramp\"\nstart = 1e300\nslope_per_s = 1e300\n");
+        assert!(ScenarioFile::load_str(&ok, "s.toml", "s").is_ok());
+    }
+
+    /// Found by fuzzing: a file ending where a value is due gave an error
+    /// with an empty message ("c.toml:2: ").
+    #[test]
+    fn a_missing_value_at_the_end_is_named() {
+        for text in [
+            "[eso]\nbeta4 =",
+            "np =",
+            "duration_s = 5.0\n[reference]\ntype =  \n",
+        ] {
+            let e = ConfigFile::parse_str(text, "c.toml").unwrap_err();
+            assert!(!e.message.is_empty(), "{text:?}: {e}");
+            assert!(e.line.is_some(), "{text:?}: {e}");
+        }
+        let e = ConfigFile::parse_str("[eso]\nbeta1 =", "c.toml").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "c.toml:2: unexpected end of file: a value is missing"
+        );
     }
 }

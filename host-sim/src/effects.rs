@@ -205,6 +205,15 @@ pub struct ParamSpec {
     pub max: f64,
 }
 
+/// How far beyond its fit range a parameter may be set: an effect can be
+/// emulated stronger than the diagnosis would fit it, but not by orders of
+/// magnitude (a leakage conductance of 1 instead of 1e-13 makes the plant
+/// non-finite after one step).
+pub const VALID_SPAN: f64 = 10.0;
+
+/// Largest polytropic index of the entrained air (a monatomic gas, 5/3).
+pub const KAPPA_MAX: f64 = 5.0 / 3.0;
+
 const fn p(name: &'static str, typical: f64, min: f64, max: f64) -> ParamSpec {
     ParamSpec {
         name,
@@ -464,13 +473,25 @@ impl Effects {
         for k in self.active() {
             let v = self.get(k).unwrap_or_default();
             for (x, s) in v.iter().zip(k.params()) {
-                if !x.is_finite() || *x < 0.0 {
+                let most = VALID_SPAN * s.max;
+                if !(x.is_finite() && *x >= 0.0 && *x <= most) {
                     return Err(format!(
-                        "effect {}: {} = {x} must be finite and >= 0",
+                        "effect {}: {} = {x} must be in [0, {most:e}] ({VALID_SPAN} times the \
+                         largest value a fit takes, {:e})",
                         k.name(),
-                        s.name
+                        s.name,
+                        s.max
                     ));
                 }
+            }
+        }
+        if let Some(a) = self.air {
+            if !(1.0..=KAPPA_MAX).contains(&a.kappa) {
+                return Err(format!(
+                    "effect air: kappa = {} must be in [1, {KAPPA_MAX:.3}] (isothermal to \
+                     adiabatic monatomic gas)",
+                    a.kappa
+                ));
             }
         }
         if let Some(f) = self.friction {

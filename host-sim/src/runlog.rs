@@ -360,6 +360,17 @@ impl RunLog {
                         ),
                     ));
                 }
+                if !dt.is_finite() {
+                    return Err(err(
+                        Some(n),
+                        Some(&names[t_col]),
+                        format!(
+                            "time step from {} to {} is not a finite number",
+                            t[t.len() - 2],
+                            t[t.len() - 1]
+                        ),
+                    ));
+                }
                 let d0 = *dt0.get_or_insert(dt);
                 if (dt - d0).abs() > DT_REL_TOL * d0 {
                     return Err(err(
@@ -441,6 +452,18 @@ t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n\
         let back = GOOD.replace("0.002,", "0.0005,");
         let e = error_of(&back);
         assert!(e.message.contains("does not increase"), "{e}");
+    }
+
+    /// Found by fuzzing: two finite times more than f64::MAX apart made the
+    /// first step infinite, after which every later step passed as uniform.
+    #[test]
+    fn an_infinite_time_step_is_rejected() {
+        let e = error_of(
+            "t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n\
+-1e308,0,0,0,0,0,0,0\n1e308,0,0,0,0,0,0,0\n1.5e308,0,0,0,0,0,0,0\n",
+        );
+        assert_eq!((e.line, e.column.as_deref()), (Some(3), Some("t_s")), "{e}");
+        assert!(e.message.contains("not a finite number"), "{e}");
     }
 
     #[test]

@@ -86,6 +86,44 @@ impl Signal {
             Self::Piecewise(p) => p.value(t_s),
         }
     }
+
+    /// Whether the signal is finite at every time in `[t0_s, t1_s]`, from its
+    /// parameters: finite parameters can still overflow (an amplitude near
+    /// f64::MAX plus a bias, 2 pi times a huge frequency, a steep ramp far
+    /// from its origin). Sine and cosine are bounded by `|bias| + |amplitude|`
+    /// when their phase is finite; the phase and a ramp are linear in t, so
+    /// they are finite over the interval when they are at its ends. A
+    /// piecewise signal's pieces are checked over the times they are in force.
+    pub fn is_finite_over(&self, t0_s: f64, t1_s: f64) -> bool {
+        match self {
+            Self::Constant(v) => v.is_finite(),
+            Self::Sine {
+                bias,
+                amplitude,
+                omega_radps,
+                t0_s: origin,
+            }
+            | Self::Cosine {
+                bias,
+                amplitude,
+                omega_radps,
+                t0_s: origin,
+            } => {
+                (bias.abs() + amplitude.abs()).is_finite()
+                    && (omega_radps * (t0_s - origin)).is_finite()
+                    && (omega_radps * (t1_s - origin)).is_finite()
+            }
+            Self::Ramp { .. } => self.value(t0_s).is_finite() && self.value(t1_s).is_finite(),
+            Self::Piecewise(p) => {
+                let th = &p.thresholds_s;
+                p.pieces.iter().enumerate().all(|(i, piece)| {
+                    let lo = if i == 0 { t0_s } else { th[i - 1].max(t0_s) };
+                    let hi = th.get(i).map_or(t1_s, |t| t.min(t1_s));
+                    lo > hi || piece.is_finite_over(lo, hi)
+                })
+            }
+        }
+    }
 }
 
 /// Why a [`Piecewise`] signal could not be built.
@@ -441,6 +479,40 @@ mod tests {
         assert_eq!(f(30_000), 200.0); // 300 sin(0) + 200
         let t = tick_time_s(31_250, DT); // quarter period of the 2 Hz sine
         assert!((sc.load_n(t) - 500.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn finite_parameters_that_overflow_are_found() {
+        let sine = |bias: f64, amplitude: f64, omega_radps: f64, t0_s: f64| Signal::Sine {
+            bias,
+            amplitude,
+            omega_radps,
+            t0_s,
+        };
+        assert!(sine(400.0, 200.0, PI, 0.0).is_finite_over(0.0, 10.0));
+        assert!(!sine(1e308, 1e308, 1.0, 0.0).is_finite_over(0.0, 10.0));
+        assert!(!sine(0.0, 1.0, f64::INFINITY, 0.0).is_finite_over(0.0, 10.0));
+        assert!(!sine(0.0, 1.0, 1e300, -1e10).is_finite_over(0.0, 10.0));
+        let ramp = Signal::Ramp {
+            start: 0.0,
+            slope_per_s: 1e306,
+            t0_s: 0.0,
+        };
+        assert!(ramp.is_finite_over(0.0, 10.0));
+        assert!(!ramp.is_finite_over(0.0, 1000.0));
+        // A piece only counts where it is in force.
+        let p = Signal::Piecewise(
+            Piecewise::new(vec![1.0], vec![ramp.clone(), Signal::Constant(0.0)]).unwrap(),
+        );
+        assert!(p.is_finite_over(0.0, 1000.0));
+        let late = Signal::Piecewise(
+            Piecewise::new(vec![1.0], vec![Signal::Constant(0.0), ramp]).unwrap(),
+        );
+        assert!(!late.is_finite_over(0.0, 1000.0));
+        for sc in Scenario::nominal() {
+            let d = sc.duration_s();
+            assert!(sc.load().is_finite_over(0.0, d), "{}", sc.name());
+        }
     }
 
     #[test]

@@ -112,6 +112,11 @@ pub enum SimError {
     Step(f64),
     /// The effects cannot be combined with this plant.
     Effects(String),
+    /// The plant's state stopped being finite (checked on the 1 ms grid).
+    Diverged {
+        /// The first logged instant with a non-finite state, s.
+        t_s: f64,
+    },
 }
 
 impl std::fmt::Display for SimError {
@@ -122,6 +127,11 @@ impl std::fmt::Display for SimError {
             Self::Step(dt) => write!(
                 f,
                 "plant step {dt} s must be > 0 and divide the 1 ms log grid"
+            ),
+            Self::Diverged { t_s } => write!(
+                f,
+                "the simulated plant diverged (state not finite at t = {t_s:.3} s): an \
+                 effect or plant step far from its usual range?"
             ),
         }
     }
@@ -199,6 +209,9 @@ pub fn run_with(spec: &RunSpec, mut hook: impl FnMut(&Tick)) -> Result<Trace, Si
             out.v_cmd_mps as f64
         };
         if k % log_every == 0 {
+            if !s.is_finite() {
+                return Err(SimError::Diverged { t_s: t });
+            }
             let d = if spec.effects.is_none() {
                 plant.derivative(&x, v_cmd, ft)
             } else {
