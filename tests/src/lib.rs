@@ -1,3 +1,4 @@
 //! Cross-crate system tests live in `tests/tests/`.
 
 pub mod foreign;
+pub mod fuzz;
