@@ -1,4 +1,5 @@
-//! dca-core: the control core of the miniature double-cylinder hydraulic actuator.
+//! dca-core: the control laws of the miniature double-cylinder hydraulic
+//! actuator.
 //!
 //! Everything that decides a drive command lives here, for the firmware, the
 //! simulator and the hardware-in-the-loop runs alike (plant.md section 6):
@@ -11,6 +12,11 @@
 //! * [`controller`]: the multi-rate schedule behind one `step` call, the
 //!   presets "paper" and "fast", and the input guards.
 //!
+//! The board application these laws run in (supervisor, settings and
+//! calibrations, console, HIL frames) is the separate crate `dca-app`
+//! (`core/app/`), which depends on this one and never the other way: the laws
+//! know nothing of where their samples come from.
+//!
 //! The crate is `no_std`, allocation-free and forbids `unsafe`. Determinism:
 //! only IEEE-754 +, -, *, /, sqrt and `libm` functions are used (no fused or
 //! target-specific operations), and the observer is pure integer arithmetic,
@@ -19,20 +25,15 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod console;
 pub mod controller;
 pub mod design;
 pub mod eso;
-pub mod frame;
 pub mod fuzzy;
 pub mod fxp;
 pub mod mpc;
 pub mod params;
 pub mod pid;
-pub mod settings;
-pub mod supervisor;
 pub mod td;
-pub mod text;
 
 pub use controller::{
     ConfigError, Controller, ControllerConfig, ControllerKind, Flags, Output, Preset, Sample,

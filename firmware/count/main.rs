@@ -16,8 +16,8 @@
 #![warn(missing_docs)]
 
 use core::mem::MaybeUninit;
+use dca_app::settings::Settings;
 use dca_core::controller::{Controller, ControllerKind, Sample};
-use dca_core::settings::Settings;
 // The interrupt vectors cortex-m-rt's `link.x` expects from the device crate.
 use stm32f4 as _;
 

@@ -59,7 +59,7 @@ use stm32f4xx_hal::{
     watchdog::IndependentWatchdog,
 };
 
-use dca_core::settings::IMAGE_LEN;
+use dca_app::settings::IMAGE_LEN;
 
 /// HSE crystal on the board, Hz.
 #[cfg(not(feature = "qemu"))]

@@ -4,11 +4,11 @@
 //! Everything here is plain data and logic over RTIC resource locks: no
 //! register is touched except through the drivers of [`crate::hardware`].
 
-use dca_core::console::{LogRow, Status, Target};
+use dca_app::console::{LogRow, Status, Target};
+use dca_app::frame::{LinkError, LinkMonitor, SampleFrame};
+use dca_app::settings::{Calibration, DriveScale, Settings, IMAGE_LEN};
+use dca_app::supervisor::{ControlLoop, Faults, Refused};
 use dca_core::controller::{Controller, Sample};
-use dca_core::frame::{LinkError, LinkMonitor, SampleFrame};
-use dca_core::settings::{Calibration, DriveScale, Settings, IMAGE_LEN};
-use dca_core::supervisor::{ControlLoop, Faults, Refused};
 use rtic::mutex::prelude::*;
 
 use crate::hardware::{

@@ -4,10 +4,10 @@
 //! Structure after quartiq/stabilizer: [`hardware::setup`] configures the chip and
 //! returns one [`hardware::Devices`] struct that `init` unpacks; the tasks never touch
 //! registers themselves. All control logic is dca-core's, called unchanged:
-//! [`dca_core::supervisor::ControlLoop`] (supervisor, reference, controller) per tick,
-//! [`dca_core::console::Console`] for the serial console,
-//! [`dca_core::settings::Settings`] for the settings and their flash image, and
-//! [`dca_core::frame`] for the HIL link.
+//! [`dca_app::supervisor::ControlLoop`] (supervisor, reference, controller) per tick,
+//! [`dca_app::console::Console`] for the serial console,
+//! [`dca_app::settings::Settings`] for the settings and their flash image, and
+//! [`dca_app::frame`] for the HIL link.
 //!
 //! Tasks, by priority:
 //!
@@ -56,9 +56,9 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 }
 
 use core::sync::atomic::{AtomicU32, Ordering};
-use dca_core::console::LogRow;
+use dca_app::console::LogRow;
+use dca_app::frame::MAX_FRAME_LEN;
 use dca_core::controller::Sample;
-use dca_core::frame::MAX_FRAME_LEN;
 
 use machine::RunConfig;
 
@@ -85,9 +85,9 @@ pub const TELEMETRY_ROWS: usize = 48;
 /// printed).
 pub type RowEvent = (u8, LogRow);
 
-/// The console's receive path: [`dca_core::console::Receiver`] sized by
-/// [`dca_core::console::RX_QUEUE_BYTES`].
-pub type ConsoleInput = dca_core::console::Receiver<{ dca_core::console::RX_QUEUE_BYTES }>;
+/// The console's receive path: [`dca_app::console::Receiver`] sized by
+/// [`dca_app::console::RX_QUEUE_BYTES`].
+pub type ConsoleInput = dca_app::console::Receiver<{ dca_app::console::RX_QUEUE_BYTES }>;
 
 /// One encoded HIL frame for the transmitter.
 #[derive(Clone, Copy, Debug)]
@@ -161,13 +161,13 @@ mod app {
         Sensors, DEADLINE_US, TELEMETRY_ROWS, UPTIME_MS,
     };
     use core::fmt::Write as _;
-    use dca_core::console::{
+    use dca_app::console::{
         write_log_header, write_log_row, Console, Received, ECHO_BYTES, MAX_LINE,
     };
-    use dca_core::frame::{self, CommandFrame, FrameReader, ReadEvent, MAX_FRAME_LEN};
-    use dca_core::settings::{Settings, BOARD_DT_S, IMAGE_LEN};
-    use dca_core::supervisor::Faults;
-    use dca_core::text::Buf;
+    use dca_app::frame::{self, CommandFrame, FrameReader, ReadEvent, MAX_FRAME_LEN};
+    use dca_app::settings::{Settings, BOARD_DT_S, IMAGE_LEN};
+    use dca_app::supervisor::Faults;
+    use dca_app::text::Buf;
     use embedded_hal_nb::serial::{Read as _, Write as _};
     use hardware::{
         ConsoleRx, ConsoleTx, HilRx, HilTx, SettingsStore, TickTimer, UsClock, Watchdog,

@@ -28,7 +28,7 @@
 //!
 //! # Start-up
 //! The firmware supervises the link from the first valid frame on (see
-//! `dca_core::frame`), so the host may take its time between `arm` and its
+//! `dca_app::frame`), so the host may take its time between `arm` and its
 //! first frame. The host drops what its port received before, sends a lone
 //! `0x00` (ending any partial frame in the firmware's reader) and then `seq`
 //! 0, and skips received bytes that do not form a valid reply to it. A board
@@ -39,10 +39,10 @@ use std::io::{self, Write};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use dca_app::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
+use dca_app::settings::{Settings, BOARD_DT_S, PARAMS};
+use dca_app::supervisor::ControlLoop;
 use dca_core::controller::{ControllerConfig, Preset, Sample};
-use dca_core::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
-use dca_core::settings::{Settings, BOARD_DT_S, PARAMS};
-use dca_core::supervisor::ControlLoop;
 
 use crate::board::console::{ConsoleClient, CONSOLE_BAUD};
 use crate::board::port::SerialLink;
@@ -102,14 +102,14 @@ pub enum HilError {
     Fault {
         /// Tick index.
         tick: u32,
-        /// Fault bits (dca_core::supervisor::Faults).
+        /// Fault bits (dca_app::supervisor::Faults).
         faults: u16,
     },
 }
 
 fn fault_names(faults: u16) -> String {
     let mut names = String::new();
-    dca_core::console::write_faults(&mut names, faults);
+    dca_app::console::write_faults(&mut names, faults);
     names
 }
 
@@ -190,8 +190,8 @@ pub fn setup_commands(cfg: &ControllerConfig) -> Result<Vec<String>, HilError> {
             continue;
         }
         let text = match p.kind {
-            dca_core::settings::ParamKind::F64 => format!("{v:e}"),
-            dca_core::settings::ParamKind::F32 => format!("{:e}", v as f32),
+            dca_app::settings::ParamKind::F64 => format!("{v:e}"),
+            dca_app::settings::ParamKind::F32 => format!("{:e}", v as f32),
             _ => format!("{v}"),
         };
         let digits = text

@@ -8,10 +8,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use dca_app::frame::{self, CommandFrame, FrameReader, LinkMonitor, ReadEvent};
+use dca_app::settings::{Settings, BOARD_DT_S};
+use dca_app::supervisor::ControlLoop;
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
-use dca_core::frame::{self, CommandFrame, FrameReader, LinkMonitor, ReadEvent};
-use dca_core::settings::{Settings, BOARD_DT_S};
-use dca_core::supervisor::ControlLoop;
 use host_sim::board::console::{ConsoleClient, CONSOLE_BAUD};
 use host_sim::board::port::SerialLink;
 use host_sim::board::BoardError;

@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use dca_app::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
+use dca_app::supervisor::{Faults, State};
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
-use dca_core::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
-use dca_core::supervisor::{Faults, State};
 use host_sim::board::console::{ConsoleClient, CONSOLE_BAUD};
 use host_sim::board::port::SerialLink;
 use host_sim::hil::{run_hil_qemu, run_software, Emulator, QemuOptions, HIL_BAUD};

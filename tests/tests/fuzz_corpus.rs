@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
-use dca_core::settings::PARAMS;
+use dca_app::settings::PARAMS;
 use dca_tests::fuzz::{self, seeds, take_known_defects, Harness, TARGETS};
 use host_sim::batch::SweepParam;
 use host_sim::config::{ConfigFile, ScenarioFile};

@@ -55,13 +55,13 @@ pub fn parse_script(text: &str, file: &str) -> Result<Vec<Step>, String> {
             steps.push(Step::Sleep(s));
             continue;
         }
-        if line.len() > dca_core::console::MAX_LINE
+        if line.len() > dca_app::console::MAX_LINE
             || !line.bytes().all(|b| (0x20..0x7f).contains(&b))
         {
             return Err(format!(
                 "{file}:{}: a console line is printable ASCII of at most {} characters",
                 i + 1,
-                dca_core::console::MAX_LINE
+                dca_app::console::MAX_LINE
             ));
         }
         steps.push(Step::Send(line.to_string()));

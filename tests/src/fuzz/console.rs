@@ -17,10 +17,10 @@
 //! * every image the console stores loads back to the same settings, and a
 //!   `load` from an intact flash gives back what was stored.
 
-use dca_core::console::{Console, Edit, LineEditor, LineError, Status, Target, MAX_LINE};
+use dca_app::console::{Console, Edit, LineEditor, LineError, Status, Target, MAX_LINE};
+use dca_app::settings::{Settings, IMAGE_LEN, PARAMS};
+use dca_app::supervisor::{ControlLoop, Refused};
 use dca_core::controller::{Controller, Sample};
-use dca_core::settings::{Settings, IMAGE_LEN, PARAMS};
-use dca_core::supervisor::{ControlLoop, Refused};
 
 use super::{crc32_iso_hdlc, Bytes};
 

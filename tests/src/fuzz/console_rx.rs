@@ -1,4 +1,4 @@
-//! The console's receive path, `dca_core::console::Receiver`: what the
+//! The console's receive path, `dca_app::console::Receiver`: what the
 //! board's receive interrupt and its console task do with the bytes and the
 //! line queue, in any interleaving.
 //!
@@ -20,9 +20,7 @@
 //!   while echo is on;
 //! * with every line taken, the queue is empty.
 
-use dca_core::console::{
-    Edit, LineEditor, LineError, Received, Receiver, MAX_LINE, RX_QUEUE_BYTES,
-};
+use dca_app::console::{Edit, LineEditor, LineError, Received, Receiver, MAX_LINE, RX_QUEUE_BYTES};
 
 use super::Bytes;
 

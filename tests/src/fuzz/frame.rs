@@ -26,7 +26,7 @@
 //! monitor's rules in one (`Expect`), so that a change of the frame API
 //! changes only those.
 
-use dca_core::frame::{
+use dca_app::frame::{
     decode, encode, FrameError, FrameReader, LinkError, LinkMonitor, ReadEvent, SampleFrame,
     MAX_FRAME_LEN,
 };

@@ -9,10 +9,10 @@
 //!
 //! | harness | code under test |
 //! |---|---|
-//! | [`console()`] | `dca_core::console`: line editor and command interpreter, settings store/load |
-//! | [`console_rx()`] | `dca_core::console::Receiver`: the receive path between the byte interrupt and the console task |
-//! | [`frame()`] | `dca_core::frame`: HIL frame reader, decoder and link monitor |
-//! | [`settings_image()`] | `dca_core::settings::Settings::from_image` |
+//! | [`console()`] | `dca_app::console`: line editor and command interpreter, settings store/load |
+//! | [`console_rx()`] | `dca_app::console::Receiver`: the receive path between the byte interrupt and the console task |
+//! | [`frame()`] | `dca_app::frame`: HIL frame reader, decoder and link monitor |
+//! | [`settings_image()`] | `dca_app::settings::Settings::from_image` |
 //! | [`runlog()`] | `host_sim::runlog::RunLog::parse` |
 //! | [`scenario_toml()`] | `host_sim::config::ScenarioFile::load_str`, effects, controller tables |
 //! | [`config_toml()`] | `host_sim::config::ConfigFile` and `host_sim::batch::SweepParam::parse` |

@@ -8,9 +8,9 @@
 //! fuzzers starting from stale seeds) and rewrites them when run with
 //! `DCA_FUZZ_WRITE_SEEDS=1`.
 
+use dca_app::frame::{encode, SampleFrame, MAX_FRAME_LEN};
+use dca_app::settings::{Settings, IMAGE_LEN};
 use dca_core::controller::{ControllerKind, Preset};
-use dca_core::frame::{encode, SampleFrame, MAX_FRAME_LEN};
-use dca_core::settings::{Settings, IMAGE_LEN};
 
 /// One generated seed: target, file name, content.
 pub type Seed = (&'static str, &'static str, Vec<u8>);

@@ -10,8 +10,8 @@
 //!   and is canonical: [`Settings::to_image`] of the result gives back exactly
 //!   the first [`IMAGE_LEN`] input bytes (bytes past them are not read).
 
+use dca_app::settings::{Settings, SettingsError, IMAGE_LEN, PARAMS};
 use dca_core::controller::{ControllerKind, Preset};
-use dca_core::settings::{Settings, SettingsError, IMAGE_LEN, PARAMS};
 
 use super::{crc32_iso_hdlc, Bytes};
 

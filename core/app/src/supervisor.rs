@@ -19,7 +19,7 @@
 //! the reference, the controller step and the gating of the command. It is pure
 //! and host-tested; the firmware calls it unchanged.
 
-use crate::controller::{Controller, Flags, Output, Sample};
+use dca_core::controller::{Controller, Flags, Output, Sample};
 
 /// Supervisor state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

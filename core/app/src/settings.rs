@@ -22,10 +22,10 @@
 //! refused rather than misread; [`Settings::from_image`] also range-checks every
 //! value and validates the result, so a refused image leaves the defaults.
 
-use crate::controller::{ConfigError, Controller, ControllerConfig, ControllerKind, Preset};
-use crate::eso::EsoFixedGains;
-use crate::mpc::MpcGains;
 use crate::supervisor::SupervisorLimits;
+use dca_core::controller::{ConfigError, Controller, ControllerConfig, ControllerKind, Preset};
+use dca_core::eso::EsoFixedGains;
+use dca_core::mpc::MpcGains;
 
 /// Base tick of the firmware, s (the control timer's period).
 pub const BOARD_DT_S: f64 = 1.0e-3;
@@ -388,7 +388,7 @@ pub enum SettingsError {
     /// A `[min, max]` pair is not ordered.
     Order,
     /// A controller could not be designed from the result.
-    Design(crate::controller::ConfigError),
+    Design(dca_core::controller::ConfigError),
     /// A stored image is too short, has the wrong magic, version or layout.
     Format,
     /// A stored image's checksum does not match.

@@ -1,14 +1,14 @@
-//! The console (dca_core::console) against a model of the board built from the
+//! The console (dca_app::console) against a model of the board built from the
 //! core's own control loop.
 
-use dca_core::console::{
+use dca_app::console::{
     write_log_header, write_log_row, Console, Edit, LineEditor, LineError, LogRow, Received,
     Receiver, Status, Target, MAX_LINE, RX_QUEUE_BYTES,
 };
+use dca_app::settings::Settings;
+use dca_app::supervisor::{ControlLoop, Refused, State};
+use dca_app::text::Buf;
 use dca_core::controller::{Controller, ControllerKind, Sample};
-use dca_core::settings::Settings;
-use dca_core::supervisor::{ControlLoop, Refused, State};
-use dca_core::text::Buf;
 use proptest::prelude::*;
 
 struct Model {
@@ -146,7 +146,7 @@ fn every_reply_ends_with_ok_or_error() {
         "cal.encoder.gain = 2e-7\r\nok\r\n"
     );
     let all = ok(&mut c, &mut m, "get");
-    assert_eq!(all.lines().count(), dca_core::settings::PARAMS.len() + 1);
+    assert_eq!(all.lines().count(), dca_app::settings::PARAMS.len() + 1);
     assert_eq!(ok(&mut c, &mut m, "controller"), "mpc-eso\r\nok\r\n");
     assert!(ok(&mut c, &mut m, "fault").starts_with("faults=none\r\nlink good=0"));
 }

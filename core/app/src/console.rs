@@ -31,11 +31,11 @@
 
 use core::fmt::Write;
 
-use crate::controller::{Controller, ControllerKind, Preset};
 use crate::frame::LinkCounters;
 use crate::settings::{self, ParamKind, Settings, SettingsError};
 use crate::supervisor::{Faults, Refused, State};
 use crate::text::{parse_f64, parse_u32, Buf};
+use dca_core::controller::{Controller, ControllerKind, Preset};
 
 /// Longest accepted command line, characters.
 pub const MAX_LINE: usize = 80;
@@ -407,7 +407,7 @@ pub struct Status {
     /// Latched faults.
     pub faults: u16,
     /// Last sample: Xo, Xi (m), P1, P2 (Pa), Ft (N).
-    pub sample: crate::controller::Sample,
+    pub sample: dca_core::controller::Sample,
     /// Reference of the last tick, m.
     pub ref_m: f32,
     /// Command of the last tick, m/s.
@@ -884,7 +884,7 @@ pub struct LogRow {
     /// Drive command, m/s.
     pub v_cmd_mps: f32,
     /// The sample.
-    pub sample: crate::controller::Sample,
+    pub sample: dca_core::controller::Sample,
     /// Supervisor state.
     pub state: u8,
     /// Latched faults.

@@ -44,7 +44,7 @@ const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
 
 /// Host to firmware, once per control tick: the reference and what the
 /// (simulated) sensors read at the tick, SI units, exactly the core's
-/// [`crate::controller::Sample`].
+/// [`dca_core::controller::Sample`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleFrame {
     /// Tick index, counting from 0.
@@ -65,8 +65,8 @@ pub struct SampleFrame {
 
 impl SampleFrame {
     /// The controller sample carried by this frame.
-    pub fn sample(&self) -> crate::controller::Sample {
-        crate::controller::Sample {
+    pub fn sample(&self) -> dca_core::controller::Sample {
+        dca_core::controller::Sample {
             xo_m: self.xo_m,
             xi_m: self.xi_m,
             p1_pa: self.p1_pa,
@@ -89,7 +89,7 @@ pub struct CommandFrame {
     pub state: u8,
     /// Latched fault bits ([`crate::supervisor::Faults`]).
     pub faults: u16,
-    /// Controller flags of this tick ([`crate::controller::Flags`]).
+    /// Controller flags of this tick ([`dca_core::controller::Flags`]).
     pub flags: u8,
 }
 

@@ -1,7 +1,7 @@
-//! Settings (dca_core::settings): paths, ranges, validation and the image.
+//! Settings (dca_app::settings): paths, ranges, validation and the image.
 
+use dca_app::settings::{find, Settings, SettingsError, IMAGE_LEN, PARAMS};
 use dca_core::controller::{ControllerKind, Preset};
-use dca_core::settings::{find, Settings, SettingsError, IMAGE_LEN, PARAMS};
 
 #[test]
 fn defaults_are_the_paper_mpc_eso_at_the_board_tick() {
@@ -124,7 +124,7 @@ fn drive_scale_maps_speed_to_duty_and_direction() {
 
 #[test]
 fn range_bounds_decode_to_the_literals() {
-    use dca_core::settings::Bound;
+    use dca_app::settings::Bound;
     for (b, v) in [
         (Bound(1, -3), 1e-3),
         (Bound(1, -18), 1e-18),

@@ -1,6 +1,6 @@
-//! Number parsing and formatting of the console (dca_core::text).
+//! Number parsing and formatting of the console (dca_app::text).
 
-use dca_core::text::{parse_f64, parse_u32, Buf, NumError};
+use dca_app::text::{parse_f64, parse_u32, Buf, NumError};
 
 #[test]
 fn parses_exactly_like_std_within_the_fast_path() {

@@ -1,8 +1,8 @@
-//! Supervisor and control loop (dca_core::supervisor).
+//! Supervisor and control loop (dca_app::supervisor).
 
+use dca_app::settings::Settings;
+use dca_app::supervisor::{ControlLoop, Faults, Reference, Refused, State, SupervisorLimits};
 use dca_core::controller::{Controller, Sample};
-use dca_core::settings::Settings;
-use dca_core::supervisor::{ControlLoop, Faults, Reference, Refused, State, SupervisorLimits};
 
 fn lp() -> ControlLoop {
     let s = Settings::default();
@@ -151,7 +151,7 @@ fn cosine_of_turns_matches_libm() {
         let x = i as f32 / 10_000.0;
         let x = if x >= 1.0 { 0.0 } else { x };
         let want = (2.0 * std::f64::consts::PI * x as f64).cos();
-        worst = worst.max((dca_core::supervisor::cos_turns(x) as f64 - want).abs());
+        worst = worst.max((dca_app::supervisor::cos_turns(x) as f64 - want).abs());
     }
     assert!(worst < 1e-6, "worst error {worst}");
 }

@@ -1,6 +1,6 @@
-//! HIL frames (dca_core::frame): round trips, corruption, sequence and timeout.
+//! HIL frames (dca_app::frame): round trips, corruption, sequence and timeout.
 
-use dca_core::frame::{
+use dca_app::frame::{
     decode, encode, CommandFrame, FrameError, FrameReader, LinkError, LinkMonitor, ReadEvent,
     SampleFrame, MAX_FRAME_LEN,
 };
