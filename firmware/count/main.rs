@@ -12,8 +12,6 @@
 //! `Settings::preset(Preset::Paper, kind).controller` (1 kHz base tick).
 #![no_std]
 #![no_main]
-#![deny(unsafe_code)]
-#![warn(missing_docs)]
 
 use core::mem::MaybeUninit;
 use dca_app::settings::Settings;

@@ -30,8 +30,6 @@
 //! (STM32F405): see the `qemu` module.
 #![no_std]
 #![no_main]
-#![deny(unsafe_code)]
-#![warn(missing_docs)]
 
 pub mod hardware;
 pub mod machine;

@@ -18,7 +18,6 @@
 //! `no_std`, allocation-free and forbids `unsafe`, like the laws.
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
 
 pub mod console;
 pub mod frame;
