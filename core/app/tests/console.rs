@@ -3,7 +3,7 @@
 
 use dca_app::console::{
     write_log_header, write_log_row, Console, Edit, LineEditor, LineError, LogRow, Received,
-    Receiver, Status, Target, MAX_LINE, RX_QUEUE_BYTES,
+    Receiver, Status, Target, COMMANDS, MAX_LINE, RX_QUEUE_BYTES,
 };
 use dca_app::settings::Settings;
 use dca_app::supervisor::{ControlLoop, Refused, State};
@@ -497,4 +497,37 @@ proptest! {
         }
         prop_assert_eq!(rx.queued_bytes(), 0);
     }
+}
+
+#[test]
+fn the_command_table_drives_help_and_usage() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    let help = ok(&mut c, &mut m, "help");
+    let lines: Vec<&str> = help.lines().collect();
+    assert_eq!(lines.len(), COMMANDS.len() + 1, "{help}");
+    for (cmd, line) in COMMANDS.iter().zip(&lines) {
+        assert!(
+            line.starts_with(&format!("{} ", cmd.name))
+                || line.starts_with(&format!("{}:", cmd.name)),
+            "{line}"
+        );
+        assert!(line.ends_with(cmd.help), "{line}");
+        let usage = if cmd.args.is_empty() {
+            format!("error: usage: {}\r\n", cmd.name)
+        } else {
+            format!("error: usage: {} {}\r\n", cmd.name, cmd.args)
+        };
+        // Too many arguments: always the command's own usage.
+        let extra = format!("{} a b c d", cmd.name);
+        assert_eq!(err(&mut c, &mut m, &extra), usage, "{extra}");
+        if cmd.required > 0 {
+            assert_eq!(err(&mut c, &mut m, cmd.name), usage, "{}", cmd.name);
+        }
+    }
+    let mut names: Vec<&str> = COMMANDS.iter().map(|c| c.name).collect();
+    names.sort_unstable();
+    names.dedup();
+    assert_eq!(names.len(), COMMANDS.len(), "command names are unique");
+    assert_eq!(m.applied, 0);
 }
