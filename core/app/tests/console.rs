@@ -531,3 +531,24 @@ fn the_command_table_drives_help_and_usage() {
     assert_eq!(names.len(), COMMANDS.len(), "command names are unique");
     assert_eq!(m.applied, 0);
 }
+
+/// docs/firmware.md shows `help`'s output; it must be the table's.
+#[test]
+fn the_manual_shows_the_help_the_console_prints() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    let help = ok(&mut c, &mut m, "help");
+    let printed: Vec<&str> = help.lines().filter(|l| *l != "ok").collect();
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/firmware.md");
+    let manual = std::fs::read_to_string(path).unwrap();
+    let start = manual
+        .find("```text\nhelp: ")
+        .expect("docs/firmware.md shows the help output")
+        + "```text\n".len();
+    let end = start + manual[start..].find("```").unwrap();
+    let shown: Vec<&str> = manual[start..end].lines().collect();
+    assert_eq!(
+        shown, printed,
+        "update the console section of docs/firmware.md"
+    );
+}
