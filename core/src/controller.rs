@@ -1,5 +1,5 @@
 //! One controller interface over MPC-ESO, MPC, PID and fuzzy PID, with the
-//! multi-rate schedule of plant.md section 6.1.
+//! multi-rate schedule of docs/model.md section 6.1.
 //!
 //! [`ControllerConfig`] holds the parameters (physical, as a user sets them);
 //! [`Controller::new`] designs from it once (f64, slow, allocation-free) and
@@ -17,7 +17,7 @@
 //!
 //! Start-up is bumpless: on the first tick the commanded power-piston position
 //! starts at the measured Xi and the ESO's z1 and the TD's v1 at the measured
-//! Xo (all zero in the scenarios of plant.md, which start at rest at 0).
+//! Xo (all zero in the scenarios of docs/model.md, which start at rest at 0).
 
 use crate::design::{DesignError, MpcParams};
 use crate::eso::{EsoError, EsoFixed, EsoFixedGains, EsoParams};
@@ -64,9 +64,9 @@ impl ControllerKind {
 /// Named parameter presets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Preset {
-    /// plant.md section 6.3: Ts = 0.1 s, h = 0.006 s, r_w = 33.
+    /// docs/model.md section 6.3: Ts = 0.1 s, h = 0.006 s, r_w = 33.
     Paper,
-    /// plant.md section 10: Ts = 0.01 s, h = 0.001 s, r_w = 300.
+    /// docs/model.md section 10: Ts = 0.01 s, h = 0.001 s, r_w = 300.
     Fast,
 }
 

@@ -1,5 +1,5 @@
 //! MPC design: prediction model, zero-order hold, augmented model and gains
-//! (plant.md sections 6.2 and 6.3, the paper's eq. 9-12 and 28-40).
+//! (docs/model.md sections 6.2 and 6.3, the paper's eq. 9-12 and 28-40).
 //!
 //! The design runs in f64 with nalgebra on fixed-size matrices: no allocation, so
 //! the firmware can re-design on the board after a parameter change. Only the

@@ -1,4 +1,4 @@
-//! Extended state observer (plant.md section 6.5, the paper's eq. 42-44).
+//! Extended state observer (docs/model.md section 6.5, the paper's eq. 42-44).
 //!
 //! ```text
 //! e   = z1 - y
@@ -49,7 +49,7 @@ pub struct EsoParams {
 }
 
 impl EsoParams {
-    /// The paper's Table 2 values with Han's usual exponents (plant.md 6.5).
+    /// The paper's Table 2 values with Han's usual exponents (docs/model.md 6.5).
     pub const PAPER: Self = Self {
         beta1: 30.0,
         beta2: 100.0,

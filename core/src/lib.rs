@@ -2,7 +2,7 @@
 //! actuator.
 //!
 //! Everything that decides a drive command lives here, for the firmware, the
-//! simulator and the hardware-in-the-loop runs alike (plant.md section 6):
+//! simulator and the hardware-in-the-loop runs alike (docs/model.md section 6):
 //!
 //! * [`design`]: prediction model, ZOH, augmented model and MPC gains (f64,
 //!   nalgebra, no allocation), so the board can re-design after a change;

@@ -1,4 +1,4 @@
-//! MPC run-time law (plant.md section 6.4), f32, precomputed gains only.
+//! MPC run-time law (docs/model.md section 6.4), f32, precomputed gains only.
 //!
 //! At each MPC tick:
 //! ```text
@@ -117,7 +117,7 @@ pub struct Mpc {
     pub started: bool,
 }
 
-/// The ESO's estimates as the MPC-ESO uses them (plant.md section 6.4).
+/// The ESO's estimates as the MPC-ESO uses them (docs/model.md section 6.4).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Observed {
     /// Estimated actuating piston speed z2, m/s.
@@ -190,7 +190,7 @@ impl Mpc {
         let saturated = du_sat != du_raw || u_new != u_free;
         match source {
             StateSource::Model => {
-                // The plain MPC's model state is xm; plant.md 6.4 starts it at 0
+                // The plain MPC's model state is xm; docs/model.md 6.4 starts it at 0
                 // and counts dxm from the first tick (xm_prev = xm = 0 then).
                 self.xm_prev = self.xm;
                 self.xm = mat_vec_add(&g.ad, &self.xm, &g.bd, u_new);

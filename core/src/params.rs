@@ -1,10 +1,10 @@
-//! Physical parameters of the nominal plant (plant.md section 3).
+//! Physical parameters of the nominal plant (docs/model.md section 3).
 //!
 //! One parameter set serves the controller design (the prediction model of
 //! section 6.2 needs the mass, the areas and the hose) and the host simulator's
 //! plant, so both always agree on the numbers. All values are SI.
 
-/// Hose wall parameters of one line (plant.md section 3.2).
+/// Hose wall parameters of one line (docs/model.md section 3.2).
 ///
 /// Generalised standard linear solid with an instantaneous compliance `ce0_m3pp`,
 /// a fast relaxation element (`cf0_m3pp`, `tau_f_s`) and a slow creep element
@@ -26,7 +26,7 @@ pub struct HoseParams {
 }
 
 impl HoseParams {
-    /// The nominal hose of plant.md section 3.2.
+    /// The nominal hose of docs/model.md section 3.2.
     pub const NOMINAL: Self = Self {
         ce0_m3pp: 1.2e-13,
         cf0_m3pp: 1.2e-13,
@@ -36,12 +36,12 @@ impl HoseParams {
         ps_pa: 1.0e6,
     };
 
-    /// Stiffening factor f(P) = 1 / (1 + max(P, -0.9 Ps) / Ps) (plant.md section 4).
+    /// Stiffening factor f(P) = 1 / (1 + max(P, -0.9 Ps) / Ps) (docs/model.md section 4).
     pub fn stiffening(&self, p_pa: f64) -> f64 {
         1.0 / (1.0 + guard_pressure(p_pa, self.ps_pa) / self.ps_pa)
     }
 
-    /// L(P) = Ps ln(1 + max(P, -0.9 Ps) / Ps), the integral of f (plant.md section 4), Pa.
+    /// L(P) = Ps ln(1 + max(P, -0.9 Ps) / Ps), the integral of f (docs/model.md section 4), Pa.
     pub fn log_pressure(&self, p_pa: f64) -> f64 {
         self.ps_pa * libm::log1p(guard_pressure(p_pa, self.ps_pa) / self.ps_pa)
     }
@@ -56,7 +56,7 @@ fn guard_pressure(p_pa: f64, ps_pa: f64) -> f64 {
     }
 }
 
-/// Nominal plant parameters (plant.md section 3.1), SI units.
+/// Nominal plant parameters (docs/model.md section 3.1), SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantParams {
     /// Equivalent moving mass, kg.
@@ -115,7 +115,7 @@ impl Default for PlantParams {
     }
 }
 
-/// The hose linearised at one pressure (plant.md section 4, relation to eq. 1-4).
+/// The hose linearised at one pressure (docs/model.md section 4, relation to eq. 1-4).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HoseLinearisation {
     /// Series (instantaneous plus fast) wall stiffness k1, Pa/m.
@@ -135,7 +135,7 @@ pub struct HoseLinearisation {
 }
 
 impl PlantParams {
-    /// The nominal parameter set of plant.md section 3.
+    /// The nominal parameter set of docs/model.md section 3.
     pub const NOMINAL: Self = Self {
         m_kg: 50.0,
         ap1_m2: 3.77e-4,
@@ -168,7 +168,7 @@ impl PlantParams {
         core::f64::consts::PI * self.hose_radius_m * self.hose_radius_m * self.hose_length_m
     }
 
-    /// The hose linearised at `p_pa` (plant.md section 4).
+    /// The hose linearised at `p_pa` (docs/model.md section 4).
     pub fn hose_linearisation(&self, p_pa: f64) -> HoseLinearisation {
         let h = &self.hose;
         let g = 2.0 * core::f64::consts::PI * self.hose_radius_m * self.hose_length_m;

@@ -1,5 +1,5 @@
 //! Velocity-output PID with conditional-integration anti-windup
-//! (plant.md section 6.7), f32.
+//! (docs/model.md section 6.7), f32.
 //!
 //! ```text
 //! e = r - Xo;  v = Kp e + Ki I + Kd d/dt(-Xo);  v_cmd = clamp(v, +-v_max)

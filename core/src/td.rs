@@ -1,4 +1,4 @@
-//! Han's tracking differentiator (plant.md section 6.6), f32.
+//! Han's tracking differentiator (docs/model.md section 6.6), f32.
 //!
 //! ```text
 //! fhan(x1, x2, r, h0): d = r h0; d0 = h0 d; y = x1 + h0 x2; a0 = sqrt(d^2 + 8 r |y|)
@@ -19,7 +19,7 @@ pub struct TdParams {
 }
 
 impl TdParams {
-    /// The paper's values (plant.md section 6.6).
+    /// The paper's values (docs/model.md section 6.6).
     pub const PAPER: Self = Self {
         r_mps2: 8.0,
         h0_s: 0.005,

@@ -62,7 +62,7 @@ fn command_is_held_between_controller_ticks() {
 #[test]
 fn mpc_eso_first_move_waits_for_the_td() {
     // The TD starts at the measured position, so the first MPC tick sees no
-    // error and the first move comes one MPC period later (plant.md 6.6).
+    // error and the first move comes one MPC period later (docs/model.md 6.6).
     let cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
     let mut c = Controller::new(&cfg).unwrap();
     assert_eq!(c.step(&sample(0.0), 0.05).v_cmd_mps, 0.0);

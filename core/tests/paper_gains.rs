@@ -1,4 +1,4 @@
-//! The "paper" configuration reproduces Ad, Bd, Kx and Ky of plant.md section 6.3.
+//! The "paper" configuration reproduces Ad, Bd, Kx and Ky of docs/model.md section 6.3.
 #![allow(clippy::needless_range_loop)]
 
 use dca_core::design::{MpcDesign, MpcParams};
@@ -30,7 +30,7 @@ fn design(np: usize, nc: usize) -> MpcDesign {
 #[test]
 fn ad_bd_at_ts_0_1() {
     let d = design(6, 2);
-    // plant.md prints Ad and Bd to 7 significant digits: compare to that precision.
+    // docs/model.md prints Ad and Bd to 7 significant digits: compare to that precision.
     #[rustfmt::skip]
     let ad = [
         [0.7341909, 5.455700e-3, 2.822454e-5],

@@ -9,9 +9,9 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{criterion_main, Criterion};
-use host_sim::grnn::data::QuasiStaticData;
-use host_sim::grnn::fast::FastGrnn;
-use host_sim::grnn::net::Grnn;
+use host_sim::model::hose::data::QuasiStaticData;
+use host_sim::model::hose::fast::FastGrnn;
+use host_sim::model::hose::net::Grnn;
 use rand::{Rng, SeedableRng};
 
 fn query_sets() -> Vec<(&'static str, Vec<[f64; 2]>)> {

@@ -1,13 +1,13 @@
-//! `host-sim gap` as interfaces.md section 2 fixes it: the JSON fields, and
+//! `host-sim gap` as docs/interfaces.md section 2 fixes it: the JSON fields, and
 //! unusable logs rejected with the file, line and column named.
 
 use std::path::PathBuf;
 
 use dca_core::controller::ControllerKind;
-use host_sim::effects::Effects;
 use host_sim::gap::diagnose::Options;
 use host_sim::gap::run_gap;
 use host_sim::gap::validation::{check_scenario, fit_scenario, rig_log};
+use host_sim::model::effects::Effects;
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dca-gap-{name}-{}", std::process::id()));
@@ -120,11 +120,14 @@ fn bad_logs_name_file_line_and_column() {
             None,
             &Options::default(),
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         let want = format!("{}:{line}: column '{column}'", p.display());
         assert!(err.starts_with(&want), "{err}\nwant {want}");
     }
-    let e = run_gap(&[], &[check], &d.join("r.json"), None, &Options::default()).unwrap_err();
+    let e = run_gap(&[], &[check], &d.join("r.json"), None, &Options::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("--fit"), "{e}");
     std::fs::remove_dir_all(&d).ok();
 }

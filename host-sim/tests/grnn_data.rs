@@ -1,6 +1,6 @@
 //! Hose test data: the shipped sample data and the loaders' error messages.
 
-use host_sim::grnn::data::{DataErrorKind, DynamicData, QuasiStaticData};
+use host_sim::model::hose::data::{DataErrorKind, DynamicData, QuasiStaticData};
 
 #[test]
 fn shipped_quasistatic_data() {

@@ -1,11 +1,11 @@
 //! The accelerated GRNN evaluators stay within their stated bounds of the direct
 //! sum, on random points inside the data, around it and far outside.
 
-use host_sim::grnn::data::{DynamicData, QuasiStaticData};
-use host_sim::grnn::fast::{FastGrnn, Truncated};
-use host_sim::grnn::hose::GrnnHose;
-use host_sim::grnn::memory::{features, MemoryGrnn, MEMORY_DIM};
-use host_sim::grnn::net::Grnn;
+use host_sim::model::hose::data::{DynamicData, QuasiStaticData};
+use host_sim::model::hose::fast::{FastGrnn, Truncated};
+use host_sim::model::hose::grnn::GrnnHose;
+use host_sim::model::hose::memory::{features, MemoryGrnn, MEMORY_DIM};
+use host_sim::model::hose::net::Grnn;
 use rand::{Rng, SeedableRng};
 
 fn pooled(sigma: f64) -> Grnn {

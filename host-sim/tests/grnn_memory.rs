@@ -1,14 +1,13 @@
 //! The memory GRNN on the dynamic hose data, against the static map.
 
 use dca_core::params::PlantParams;
-use host_sim::grnn::closed_loop::{dt_for, real_time_factor};
-use host_sim::grnn::data::{DynamicData, QuasiStaticData};
-use host_sim::grnn::hose::{SHIPPED_MEMORY_SIGMA, SHIPPED_MEMORY_TAUS_S};
-use host_sim::grnn::memory::{
-    leave_one_run_out, loro_table, lowpass, select, static_features, MemoryGrnn,
-};
-use host_sim::grnn::net::{score, Grnn};
-use host_sim::plant::{HoseModel, Plant};
+use host_sim::model::hose::data::{DynamicData, QuasiStaticData};
+use host_sim::model::hose::grnn::{SHIPPED_MEMORY_SIGMA, SHIPPED_MEMORY_TAUS_S};
+use host_sim::model::hose::memory::{lowpass, static_features, MemoryGrnn};
+use host_sim::model::hose::net::{score, Grnn};
+use host_sim::model::plant::{HoseModel, Plant};
+use host_sim::studies::grnn::closed_loop::{dt_for, real_time_factor};
+use host_sim::studies::grnn::memory::{leave_one_run_out, loro_table, select};
 
 /// The filter is exact for a pressure linear between samples: on a ramp from
 /// equilibrium, lowpass(P) = P - s tau (1 - e^(-t/tau)).

@@ -1,14 +1,14 @@
 //! The paper's hose-model study on the shipped quasi-static data
-//! (plant.md section 9; the paper's Fig. 9).
+//! (docs/model.md section 9; the paper's Fig. 9).
 
-use host_sim::grnn::data::QuasiStaticData;
-use host_sim::grnn::net::{vacc_mean_normalised_pct, vacc_relative_pct, Grnn};
-use host_sim::grnn::paper::{
+use host_sim::model::hose::data::QuasiStaticData;
+use host_sim::model::hose::net::{vacc_mean_normalised_pct, vacc_relative_pct, Grnn};
+use host_sim::model::hose::split::Shuffle;
+use host_sim::studies::grnn::paper::{
     compare_models, cv_sigmas, pooled_scores, section_scores, CompareOptions, PAPER_SEED,
 };
-use host_sim::grnn::split::Shuffle;
 
-/// plant.md section 9 quotes one decimal; with numpy's split reproduced bit for
+/// docs/model.md section 9 quotes one decimal; with numpy's split reproduced bit for
 /// bit the only difference left is the rounding of the quote.
 const QUOTE_TOL: f64 = 0.05 + 1e-9;
 
@@ -75,7 +75,7 @@ fn pooled_grnn_reproduces_plant_md() {
     assert_eq!(best.0, 0.03);
 }
 
-/// 5-fold CV on each section's training part picks sigma = 0.1 (plant.md section
+/// 5-fold CV on each section's training part picks sigma = 0.1 (docs/model.md section
 /// 9), on all samples pooled a much smaller one (0.04 with these folds; the
 /// test-set optimum is 0.03).
 #[test]

@@ -1,17 +1,17 @@
-//! The GRNN hose variants of the plant (plant.md section 4 "Variants") and the
+//! The GRNN hose variants of the plant (docs/model.md section 4 "Variants") and the
 //! closed-loop comparison of section 11, item 18.
 
 use std::sync::Arc;
 
 use dca_core::params::PlantParams;
-use host_sim::grnn::closed_loop::{
+use host_sim::model::hose::data::QuasiStaticData;
+use host_sim::model::hose::grnn::{GrnnHose, NEWTON_MAX_ITER};
+use host_sim::model::hose::net::Grnn;
+use host_sim::model::plant::{HoseModel, Plant, State};
+use host_sim::model::scenario::{tick_time_s, Scenario};
+use host_sim::studies::grnn::closed_loop::{
     comparison_table, dt_for, load_deviation, stepload_comparison, stepload_trace,
 };
-use host_sim::grnn::data::QuasiStaticData;
-use host_sim::grnn::hose::{GrnnHose, NEWTON_MAX_ITER};
-use host_sim::grnn::net::Grnn;
-use host_sim::plant::{HoseModel, Plant, State};
-use host_sim::scenario::{tick_time_s, Scenario};
 
 /// The plant is shared by threads in batches: it must stay Send + Sync.
 #[test]
@@ -97,7 +97,7 @@ fn newton_solves_the_implicit_pressure_equation() {
 
 /// The static GRNN hose is stiff for fast transients: far outside its trained
 /// dP/dt range the map is flat, so dP/dt approaches the rigid-pipe value
-/// Q beta_e / V (plant.md section 11, item 18).
+/// Q beta_e / V (docs/model.md section 11, item 18).
 #[test]
 fn grnn_hose_is_rigid_in_fast_transients() {
     let grnn = Plant::new(PlantParams::NOMINAL, HoseModel::Grnn);
@@ -146,13 +146,13 @@ fn grnn_runs_are_reproducible() {
     assert_eq!(solves, 8 * sc.n_steps(dt));
     // Stiff like a rigid pipe, the GRNN hose lets P1 dip below 0 gauge in the
     // sine-load phase (-0.47 MPa; the rigid hose -0.36 MPa, the true hose stays
-    // at >= 0.13 MPa); no cavitation model (plant.md section 4.2). No blow-up:
+    // at >= 0.13 MPa); no cavitation model (docs/model.md section 4.2). No blow-up:
     assert!(p1_min > -1.0e6, "P1 min {p1_min}");
     // The nominal plant ends at Xo = 23.43 mm; the GRNN hose within 1 mm of it.
     assert!((a.xo_m - 0.02343).abs() < 1e-3, "Xo {}", a.xo_m);
 }
 
-/// Section 11 item 18: MPC-ESO "paper" on stepload. plant.md quotes 0.97 mm
+/// Section 11 item 18: MPC-ESO "paper" on stepload. docs/model.md quotes 0.97 mm
 /// (GRNN hose), 0.96 mm (rigid), 2.01 mm (true hose); measured here 1.000,
 /// 1.000 and 2.011 mm. The static GRNN hose must be within 10 % of the rigid
 /// one (it is within 0.1 %), the true hose about 2 mm (+-3 %).

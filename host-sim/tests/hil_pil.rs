@@ -15,13 +15,14 @@ use std::time::Duration;
 use dca_app::frame::{self, CommandFrame, SampleFrame, MAX_FRAME_LEN};
 use dca_app::supervisor::{Faults, State};
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
-use host_sim::board::console::{ConsoleClient, CONSOLE_BAUD};
-use host_sim::board::port::SerialLink;
-use host_sim::hil::{run_hil_qemu, run_software, Emulator, QemuOptions, HIL_BAUD};
-use host_sim::plant::Plant;
-use host_sim::runlog::RunLog;
-use host_sim::scenario::Scenario;
-use host_sim::sensors::SensorMode;
+use host_sim::hil::board::console::{ConsoleClient, CONSOLE_BAUD};
+use host_sim::hil::board::port::SerialLink;
+use host_sim::hil::board::qemu::{Emulator, QemuOptions};
+use host_sim::hil::{run_hil_qemu, run_software, HIL_BAUD};
+use host_sim::io::runlog::RunLog;
+use host_sim::model::plant::Plant;
+use host_sim::model::scenario::Scenario;
+use host_sim::model::sensors::SensorMode;
 use host_sim::sim::RunSpec;
 
 /// The firmware's link timeout for runs that test bit identity, not timing:

@@ -1,12 +1,12 @@
 //! The HIL lockstep loop with the core in this process (no emulator needed).
 
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
-use host_sim::effects::Effects;
 use host_sim::hil::{run_software, setup_commands, HilError};
-use host_sim::plant::Plant;
-use host_sim::runlog::RunLog;
-use host_sim::scenario::Scenario;
-use host_sim::sensors::SensorMode;
+use host_sim::io::runlog::RunLog;
+use host_sim::model::effects::Effects;
+use host_sim::model::plant::Plant;
+use host_sim::model::scenario::Scenario;
+use host_sim::model::sensors::SensorMode;
 use host_sim::sim::RunSpec;
 
 fn spec(name: &str, cfg: ControllerConfig) -> RunSpec {

@@ -1,11 +1,11 @@
-//! Check vectors of plant.md sections 4.1 and 4.2, the software limit, the rest
+//! Check vectors of docs/model.md sections 4.1 and 4.2, the software limit, the rest
 //! equilibrium and an open-loop run of the nominal plant.
 
 use dca_core::params::PlantParams;
-use host_sim::plant::{HoseModel, Plant, State, NOMINAL_DT_S, N_STATES};
-use host_sim::scenario::{tick_time_s, Scenario};
+use host_sim::model::plant::{HoseModel, Plant, State, NOMINAL_DT_S, N_STATES};
+use host_sim::model::scenario::{tick_time_s, Scenario};
 
-/// Required relative accuracy against plant.md's check values.
+/// Required relative accuracy against docs/model.md's check values.
 const REL_TOL: f64 = 1e-9;
 
 /// Relative error of `got` against `want` (absolute error if `want` is 0).
@@ -17,7 +17,7 @@ fn rel_err(got: f64, want: f64) -> f64 {
     }
 }
 
-/// Relative tolerance for a value printed in plant.md with its last printed digit
+/// Relative tolerance for a value printed in docs/model.md with its last printed digit
 /// worth `last_digit`: 1e-9, or half a unit of the last printed digit relative to the
 /// value when the printed precision is coarser than that (e.g. 9 significant digits).
 fn printed_tol(want: f64, last_digit: f64) -> f64 {
@@ -35,7 +35,7 @@ fn check(name: &str, got: f64, want: f64, tol: f64) -> f64 {
     e
 }
 
-/// The unit-test state of plant.md section 4.2.
+/// The unit-test state of docs/model.md section 4.2.
 fn vector_state() -> State {
     State::from_array([
         0.02, 0.03, 0.025, 0.035, 1.5e6, 0.9e6, 1.0e-7, 3.0e-7, 8.0e-8, 3.2e-7, 1.02e-4,
@@ -47,7 +47,7 @@ fn initial_state_section_4_1() {
     let plant = Plant::nominal();
     let x = plant.initial_state(0.0);
     let (v1, v2) = plant.line_volumes(x.xi_m, x.xo_m);
-    // (name, got, want, value of the last digit printed in plant.md)
+    // (name, got, want, value of the last digit printed in docs/model.md)
     let cases = [
         ("P1", x.p1_pa, 640_127.388535, 1e-6),
         ("V1", v1, 7.588433388e-5, 1e-14),

@@ -1,5 +1,5 @@
 //! The fixed-point ESO stays within its stated bound of the f64 reference ESO
-//! along the paper's closed-loop scenarios (plant.md sections 6.5 and 7).
+//! along the paper's closed-loop scenarios (docs/model.md sections 6.5 and 7).
 //!
 //! The MPC-ESO runs the nominal plant; at every ESO update the f64 observer is
 //! fed the very same inputs (the f32 measurement and the command in force) and
@@ -7,9 +7,9 @@
 
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use dca_core::eso::{EsoF64, EsoFixedGains};
-use host_sim::plant::Plant;
-use host_sim::scenario::Scenario;
-use host_sim::sensors::SensorMode;
+use host_sim::model::plant::Plant;
+use host_sim::model::scenario::Scenario;
+use host_sim::model::sensors::SensorMode;
 use host_sim::sim::{run_with, RunSpec};
 
 fn worst_error(preset: Preset, scenario: &str, sensors: SensorMode) -> ([f64; 3], [f64; 3]) {

@@ -1,5 +1,5 @@
 //! Checks of the independent ("foreign") rig simulator of `dca_tests::foreign`:
-//! the nominal plant against plant.md's test vectors and section 10, the
+//! the nominal plant against docs/model.md's test vectors and section 10, the
 //! determinism and shape of its logs, and the visibility of every effect case.
 
 use std::time::Instant;
@@ -120,7 +120,7 @@ fn one_rk4_step_matches_section_4_2() {
 }
 
 // ---------------------------------------------------------------------------
-// Linearised plant (plant.md section 4.3)
+// Linearised plant (docs/model.md section 4.3)
 // ---------------------------------------------------------------------------
 
 #[derive(Clone, Copy, Debug)]
@@ -295,7 +295,7 @@ fn openloop_load(t: f64) -> f64 {
     }
 }
 
-/// The plant-only scenario of plant.md section 7 with `substeps` per 1e-4 s;
+/// The plant-only scenario of docs/model.md section 7 with `substeps` per 1e-4 s;
 /// the state every 1 ms.
 fn openloop(substeps: u32) -> Vec<State> {
     let mut p = Plant::new(Effects::default(), 0.0);
@@ -476,7 +476,7 @@ fn vanishing_effects_reproduce_the_nominal_plant() {
 }
 
 // ---------------------------------------------------------------------------
-// Closed loop against plant.md section 10
+// Closed loop against docs/model.md section 10
 // ---------------------------------------------------------------------------
 
 fn errors_mm(run: &ForeignRun) -> Vec<(f64, f64)> {
@@ -766,7 +766,7 @@ fn check_finite(run: &ForeignRun) -> Result<(), String> {
         if !s.iter().all(|x| x.is_finite()) {
             return Err(format!("non-finite at t = {}", r.t_s));
         }
-        // No cavitation model (plant.md section 4.2): a line may dip a little
+        // No cavitation model (docs/model.md section 4.2): a line may dip a little
         // below 0 gauge at a fast retraction, never towards absolute vacuum.
         if !(-0.010..=0.110).contains(&r.xo_true_m)
             || !(-50e3..10e6).contains(&r.signal.p1_pa)

@@ -17,9 +17,9 @@ use std::path::{Path, PathBuf};
 
 use dca_app::settings::PARAMS;
 use dca_tests::fuzz::{self, seeds, take_known_defects, Harness, TARGETS};
-use host_sim::batch::SweepParam;
-use host_sim::config::{ConfigFile, ScenarioFile};
-use host_sim::runlog::RunLog;
+use host_sim::io::runlog::RunLog;
+use host_sim::sim::batch::SweepParam;
+use host_sim::sim::config::{ConfigFile, ScenarioFile};
 
 /// Pseudo-random inputs per target when `DCA_FUZZ_CASES` is not set.
 const DEFAULT_CASES: usize = 10_000;
@@ -108,7 +108,8 @@ fn text_seeds_are_accepted_unless_named_bad() {
                     .map_err(|e| e.to_string()),
                 _ if name.ends_with(".txt") => text
                     .lines()
-                    .try_for_each(|l| SweepParam::parse(l).map(|_| ())),
+                    .try_for_each(|l| SweepParam::parse(l).map(|_| ()))
+                    .map_err(|e| e.to_string()),
                 _ => ConfigFile::parse_str(&text, &name)
                     .and_then(|c| c.preset(&name).map(|_| ()))
                     .map_err(|e| e.to_string()),

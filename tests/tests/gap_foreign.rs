@@ -7,10 +7,11 @@
 //! target/gap-foreign.md.
 
 use dca_tests::foreign::{cases, log_csv, ForeignCase, ForeignScenario};
-use host_sim::effects::{EffectKind, Effects};
-use host_sim::gap::diagnose::{Options, NONE_GAP};
+use host_sim::gap::diagnose::Options;
+use host_sim::gap::policy::NONE_GAP;
 use host_sim::gap::validation::{publish, score, Case};
-use host_sim::runlog::RunLog;
+use host_sim::io::runlog::RunLog;
+use host_sim::model::effects::{EffectKind, Effects};
 
 fn as_case(c: &ForeignCase) -> Case {
     Case {
@@ -19,7 +20,7 @@ fn as_case(c: &ForeignCase) -> Case {
             .truth
             .iter()
             .filter(|t| **t != "none")
-            .map(|t| EffectKind::by_name(t).expect("an identifier of plant.md section 12"))
+            .map(|t| EffectKind::by_name(t).expect("an identifier of docs/model.md section 12"))
             .collect(),
         // The foreign effects have no counterpart here: the truth is the name.
         effects: Effects::NONE,
@@ -59,7 +60,7 @@ fn gap_diagnosis_on_foreign_effect_forms() {
     assert!(s.pairs.0 >= 1, "pairs naming one of the two: {:?}", s.pairs);
     // Held out: where the check runs show a gap, the chosen effect shrinks it
     // by at least 30 % (the verdict's own criterion) or brings it within the
-    // noise. The forms differ, so 50 % is not asserted here; the README
+    // noise. The forms differ, so 50 % is not asserted here; docs/gap.md
     // gives the measured shrinks.
     for o in out
         .iter()

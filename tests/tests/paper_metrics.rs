@@ -1,4 +1,4 @@
-//! The "paper" closed-loop metrics of plant.md section 10 are reproduced within
+//! The "paper" closed-loop metrics of docs/model.md section 10 are reproduced within
 //! 5 % (ideal sensors, nominal plant), for MPC-ESO, MPC and PID.
 //!
 //! Section 10 prints its numbers rounded (e.g. 0.003 mm, 0.0000 mm^2); where
@@ -6,8 +6,8 @@
 //! rounding is the tolerance instead.
 
 use dca_core::controller::Preset;
-use host_sim::paper::{run_all, table};
-use host_sim::run::trace_metrics;
+use host_sim::sim::request::trace_metrics;
+use host_sim::studies::paper::{run_all, table};
 
 /// Decimals section 10 prints each metric with, in table order.
 const DECIMALS: [i32; 9] = [2, 3, 4, 0, 2, 2, 2, 1, 2];

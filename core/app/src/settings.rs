@@ -40,7 +40,7 @@ pub struct ChannelCal {
 }
 
 impl ChannelCal {
-    /// The calibration of plant.md section 5's 12-bit ADC model over `[lo, hi]`:
+    /// The calibration of docs/model.md section 5's 12-bit ADC model over `[lo, hi]`:
     /// reading = lo + (code + 0.5)(hi - lo)/4096.
     pub fn adc12(lo: f64, hi: f64) -> Self {
         let gain = (hi - lo) / 4096.0;
@@ -72,7 +72,7 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// The sensors of plant.md section 5.
+    /// The sensors of docs/model.md section 5.
     pub fn nominal() -> Self {
         Self {
             lvdt: ChannelCal::adc12(-0.010, 0.110),
@@ -192,6 +192,39 @@ impl Param {
     /// The position of this parameter in [`PARAMS`].
     fn index(&self) -> Option<usize> {
         PARAMS.iter().position(|q| core::ptr::eq(q, self))
+    }
+
+    /// The table of the path: `eso` of `eso.beta1`, `cal` of `cal.lvdt.gain`.
+    pub fn table(&self) -> &'static str {
+        self.name.split_once('.').map_or(self.name, |(t, _)| t)
+    }
+
+    /// The path within its table: `beta1` of `eso.beta1`.
+    pub fn key(&self) -> &'static str {
+        self.name.split_once('.').map_or("", |(_, k)| k)
+    }
+
+    /// Whether the value is a controller parameter (a field of
+    /// [`ControllerConfig`], in one of [`CONTROLLER_TABLES`]) rather than a
+    /// setting of the board (calibrations, drive, supervisor, HIL link).
+    pub fn is_controller(&self) -> bool {
+        CONTROLLER_TABLES.contains(&self.table())
+    }
+
+    /// `v` as it is stored: checked against the range and the type, an `f32`
+    /// setting rounded to the nearest `f32` within the range.
+    pub fn check(&self, v: f64) -> Result<f64, SettingsError> {
+        let (lo, hi) = (self.min.value(), self.max.value());
+        if !(v >= lo && v <= hi) {
+            return Err(SettingsError::Range);
+        }
+        if matches!(self.kind, ParamKind::Int | ParamKind::Bool) && libm::trunc(v) != v {
+            return Err(SettingsError::NotInteger);
+        }
+        Ok(match self.kind {
+            ParamKind::F32 => f32_within(v, lo, hi),
+            _ => v,
+        })
     }
 
     /// The value in `s` (NaN for a `Param` that is not one of [`PARAMS`]).
@@ -371,6 +404,28 @@ params! {
     ("hil.timeout_ms", Bound(0, 0), Bound(6, 4), Int, hil_timeout_ms),
 }
 
+/// The tables of [`PARAMS`] whose values are fields of [`ControllerConfig`]
+/// (the rest are the board's: `cal`, `drive`, `sup`, `hil`).
+pub const CONTROLLER_TABLES: [&str; 7] = ["mpc", "mpc_eso", "eso", "td", "pid", "fuzzy", "limits"];
+
+/// Set the controller parameter `name` of `cfg` to `v`, range- and
+/// type-checked as [`Settings::set`] does (the console's table, so that a
+/// configuration file, a sweep and the console accept the same paths and
+/// values). `cfg` is not validated as a whole: [`Controller::new`] does that.
+/// A path that is not a controller parameter is [`SettingsError::UnknownName`].
+pub fn set_controller(cfg: &mut ControllerConfig, name: &str, v: f64) -> Result<(), SettingsError> {
+    let p = find(name)
+        .filter(|p| p.is_controller())
+        .ok_or(SettingsError::UnknownName)?;
+    let mut s = Settings {
+        controller: *cfg,
+        ..Settings::default()
+    };
+    s.set_checked(p, v)?;
+    *cfg = s.controller;
+    Ok(())
+}
+
 /// Find a parameter by its path name.
 pub fn find(name: &str) -> Option<&'static Param> {
     PARAMS.iter().find(|p| p.name == name)
@@ -498,18 +553,16 @@ impl Settings {
             .ok_or(SettingsError::UnknownName)
     }
 
+    /// Set `name` to `v`, range- and type-checked, without validating the
+    /// whole: after several changes, call [`Settings::validate`] once. An
+    /// `f32` setting stores the nearest `f32` within its range.
+    pub fn set(&mut self, name: &str, v: f64) -> Result<(), SettingsError> {
+        let p = find(name).ok_or(SettingsError::UnknownName)?;
+        self.set_checked(p, v)
+    }
+
     fn set_checked(&mut self, p: &Param, v: f64) -> Result<(), SettingsError> {
-        let (lo, hi) = (p.min.value(), p.max.value());
-        if !(v >= lo && v <= hi) {
-            return Err(SettingsError::Range);
-        }
-        if matches!(p.kind, ParamKind::Int | ParamKind::Bool) && libm::trunc(v) != v {
-            return Err(SettingsError::NotInteger);
-        }
-        let v = match p.kind {
-            ParamKind::F32 => f32_within(v, lo, hi),
-            _ => v,
-        };
+        let v = p.check(v)?;
         match p.index().and_then(|i| field(self, i)) {
             Some(f) => f.set(v),
             None => return Err(SettingsError::UnknownName),
@@ -669,6 +722,48 @@ mod tests {
         // Values inside the range keep their nearest f32.
         let (s, _) = Settings::default().with("pid.kp", 0.1).unwrap();
         assert_eq!(s.controller.pid.kp, 0.1f32);
+    }
+
+    /// A controller configuration set by path changes exactly the field the
+    /// console's `set` changes, for every controller parameter; the board's
+    /// settings are not controller parameters.
+    #[test]
+    fn controller_paths_are_the_console_paths() {
+        let mut n = 0;
+        for p in &PARAMS {
+            let mut cfg = ControllerConfig::preset(Preset::Fast, ControllerKind::Pid);
+            // A value inside the range that differs from the preset's.
+            let v = match p.kind {
+                ParamKind::Int | ParamKind::Bool => p.max.value(),
+                _ => 0.5 * p.min.value() + 0.5 * p.max.value(),
+            };
+            let r = set_controller(&mut cfg, p.name, v);
+            if !p.is_controller() {
+                assert_eq!(r, Err(SettingsError::UnknownName), "{}", p.name);
+                continue;
+            }
+            n += 1;
+            r.unwrap();
+            let mut console = Settings::preset(Preset::Fast, ControllerKind::Pid);
+            console.controller.base_dt_s = cfg.base_dt_s;
+            console.set(p.name, v).unwrap();
+            assert_eq!(console.controller, cfg, "{}", p.name);
+            assert_eq!(p.get(&console), p.check(v).unwrap(), "{}", p.name);
+            assert_eq!(&p.name[..p.table().len()], p.table());
+            assert_eq!(&p.name[p.table().len() + 1..], p.key());
+        }
+        assert_eq!(n, 35);
+        let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::Mpc);
+        let before = cfg;
+        assert_eq!(
+            set_controller(&mut cfg, "mpc.np", 6.5),
+            Err(SettingsError::NotInteger)
+        );
+        assert_eq!(
+            set_controller(&mut cfg, "mpc.rw", 1e10),
+            Err(SettingsError::Range)
+        );
+        assert_eq!(cfg, before, "a refused value changes nothing");
     }
 
     /// Found by fuzzing the image: images `to_image` never writes were read.

@@ -117,7 +117,7 @@ pub struct SupervisorLimits {
 }
 
 impl SupervisorLimits {
-    /// Defaults for the sensors of plant.md section 5: valid ranges just inside
+    /// Defaults for the sensors of docs/model.md section 5: valid ranges just inside
     /// the ADC rails (codes 0, 1, 4094, 4095 of the default calibration are
     /// outside), over-pressure 9 MPa, stroke -5 ... 105 mm.
     pub const DEFAULT: Self = Self {

@@ -13,7 +13,7 @@ fn defaults_are_the_paper_mpc_eso_at_the_board_tick() {
     assert_eq!(s.get("mpc.rw"), Ok(33.0));
     let c = s.validate().unwrap();
     assert_eq!(c.periods(), (6, 100));
-    // The LVDT calibration of plant.md section 5: code 0 reads lo + LSB/2.
+    // The LVDT calibration of docs/model.md section 5: code 0 reads lo + LSB/2.
     let lsb = 0.120 / 4096.0;
     assert!((s.cal.lvdt.apply(0.0) as f64 - (-0.010 + lsb / 2.0)).abs() < 1e-9);
 }

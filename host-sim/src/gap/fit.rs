@@ -65,6 +65,27 @@ pub struct FitResult {
     pub evals: usize,
 }
 
+/// The objective on the unit box, counting its evaluations.
+struct Objective<'a> {
+    f: &'a mut dyn FnMut(&[f64], f64) -> f64,
+    bounds: &'a [Bound],
+    evals: usize,
+}
+
+impl Objective<'_> {
+    /// The objective at `u` (infinite when not finite), told to stop above `stop`.
+    fn at(&mut self, u: &[f64], stop: f64) -> f64 {
+        self.evals += 1;
+        let x: Vec<f64> = u.iter().zip(self.bounds).map(|(u, b)| b.at(*u)).collect();
+        let v = (self.f)(&x, stop);
+        if v.is_finite() {
+            v
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
 /// Minimise `f` within `bounds` from `x0`, with at most `max_evals`
 /// evaluations and `scan` coarse points per parameter. `f(x, stop)` returns
 /// the objective at x, or, when that exceeds `stop`, any value above `stop`.
@@ -76,19 +97,13 @@ pub fn minimize(
     max_evals: usize,
 ) -> FitResult {
     let d = bounds.len();
-    let mut evals = 0usize;
-    let mut eval = |u: &[f64], evals: &mut usize, stop: f64| -> f64 {
-        *evals += 1;
-        let x: Vec<f64> = u.iter().zip(bounds).map(|(u, b)| b.at(*u)).collect();
-        let v = f(&x, stop);
-        if v.is_finite() {
-            v
-        } else {
-            f64::INFINITY
-        }
+    let mut obj = Objective {
+        f,
+        bounds,
+        evals: 0,
     };
-    let mut best_u: Vec<f64> = x0.iter().zip(bounds).map(|(x, b)| b.u_of(*x)).collect();
-    let mut best = eval(&best_u, &mut evals, f64::INFINITY);
+    let start: Vec<f64> = x0.iter().zip(bounds).map(|(x, b)| b.u_of(*x)).collect();
+    let start_value = obj.at(&start, f64::INFINITY);
     // Coarse scan: a full grid of `scan` points per parameter (capped at 27
     // points in all), so that valleys running across parameters are found.
     let per = match d {
@@ -97,6 +112,30 @@ pub fn minimize(
         2 => scan.min(5),
         _ => 3,
     };
+    let (best_u, best) = coarse_scan(&mut obj, d, per, (start, start_value));
+    let mut simplex = nelder_mead(&mut obj, &best_u, best, 0.5 / per.max(2) as f64, max_evals);
+    simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (u, v) = if simplex[0].1 < best {
+        simplex[0].clone()
+    } else {
+        (best_u, best)
+    };
+    FitResult {
+        x: u.iter().zip(bounds).map(|(u, b)| b.at(*u)).collect(),
+        value: v,
+        evals: obj.evals,
+    }
+}
+
+/// The best of `best` and a full grid of `per` points per parameter (cell
+/// centres of the unit box; none beyond three parameters).
+fn coarse_scan(
+    obj: &mut Objective<'_>,
+    d: usize,
+    per: usize,
+    best: (Vec<f64>, f64),
+) -> (Vec<f64>, f64) {
+    let (mut best_u, mut best) = best;
     let total = if d <= 3 { per.pow(d as u32) } else { 0 };
     for idx in 0..total {
         let mut rest = idx;
@@ -107,27 +146,39 @@ pub fn minimize(
                 (j as f64 + 0.5) / per as f64
             })
             .collect();
-        let v = eval(&u, &mut evals, best);
+        let v = obj.at(&u, best);
         if v < best {
             best = v;
             best_u = u;
         }
     }
-    // Nelder-Mead in the unit box.
-    let step = 0.5 / per.max(2) as f64;
-    let mut simplex: Vec<(Vec<f64>, f64)> = vec![(best_u.clone(), best)];
+    (best_u, best)
+}
+
+/// Nelder-Mead in the unit box from the vertex `best_u` (value `best`) and
+/// its neighbours `step` away along each axis, until the simplex is small
+/// or flat or `max_evals` evaluations are spent; the final simplex.
+fn nelder_mead(
+    obj: &mut Objective<'_>,
+    best_u: &[f64],
+    best: f64,
+    step: f64,
+    max_evals: usize,
+) -> Vec<(Vec<f64>, f64)> {
+    let d = best_u.len();
+    let mut simplex: Vec<(Vec<f64>, f64)> = vec![(best_u.to_vec(), best)];
     for k in 0..d {
-        let mut u = best_u.clone();
+        let mut u = best_u.to_vec();
         u[k] = if u[k] + step <= 1.0 {
             u[k] + step
         } else {
             u[k] - step
         };
-        let v = eval(&u, &mut evals, f64::INFINITY);
+        let v = obj.at(&u, f64::INFINITY);
         simplex.push((u, v));
     }
     let clamp = |u: Vec<f64>| -> Vec<f64> { u.into_iter().map(|x| x.clamp(0.0, 1.0)).collect() };
-    while evals < max_evals {
+    while obj.evals < max_evals {
         simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
         let spread = simplex.last().map(|s| s.1).unwrap_or(0.0) - simplex[0].1;
         let size = simplex
@@ -159,16 +210,16 @@ pub fn minimize(
         let xr = along(1.0);
         // Each trial is only compared with the worst vertex (reflection,
         // contraction) or with the reflection (expansion): those are its stops.
-        let fr = eval(&xr, &mut evals, worst.1);
+        let fr = obj.at(&xr, worst.1);
         if fr < simplex[0].1 {
             let xe = along(2.0);
-            let fe = eval(&xe, &mut evals, fr);
+            let fe = obj.at(&xe, fr);
             simplex[d] = if fe < fr { (xe, fe) } else { (xr, fr) };
         } else if fr < simplex[d - 1].1 {
             simplex[d] = (xr, fr);
         } else {
             let xc = along(if fr < worst.1 { 0.5 } else { -0.5 });
-            let fc = eval(&xc, &mut evals, worst.1.min(fr));
+            let fc = obj.at(&xc, worst.1.min(fr));
             if fc < worst.1.min(fr) {
                 simplex[d] = (xc, fc);
             } else {
@@ -176,23 +227,13 @@ pub fn minimize(
                 let b = simplex[0].0.clone();
                 for s in simplex.iter_mut().skip(1) {
                     let u: Vec<f64> = s.0.iter().zip(&b).map(|(x, b)| b + 0.5 * (x - b)).collect();
-                    let v = eval(&u, &mut evals, f64::INFINITY);
+                    let v = obj.at(&u, f64::INFINITY);
                     *s = (u, v);
                 }
             }
         }
     }
-    simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let (u, v) = if simplex[0].1 < best {
-        simplex[0].clone()
-    } else {
-        (best_u, best)
-    };
-    FitResult {
-        x: u.iter().zip(bounds).map(|(u, b)| b.at(*u)).collect(),
-        value: v,
-        evals,
-    }
+    simplex
 }
 
 #[cfg(test)]

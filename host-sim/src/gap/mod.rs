@@ -1,47 +1,96 @@
-//! `host-sim gap`: where a recorded run departs from the nominal model, which
-//! unmodelled effect causes it, and how far the gap shrinks once that effect
-//! is added, checked on held-out runs (interfaces.md section 2).
+//! Layer `gap` (beside [`crate::hil`] and [`crate::studies`]): `host-sim gap`,
+//! where a recorded run departs from the nominal model, which unmodelled
+//! effect causes it, and how far the gap shrinks once that effect is added,
+//! checked on held-out runs (docs/interfaces.md section 2).
+//!
+//! May import from [`crate::io`], [`crate::model`], [`crate::sim`] and `gap`
+//! itself.
 //!
 //! 1. **Replay** ([`replay`]): the nominal model driven open loop by each log's
-//!    recorded drive command (through the servo model) and load.
-//! 2. **Localise** ([`diagnose`], [`segment`], [`stats`]): the residual per
-//!    channel, per automatically found segment (moves, holds, load steps,
-//!    reversals) and per frequency band; whiteness and residual-input tests
-//!    at 99 %.
-//! 3. **Attribute**: every effect of plant.md section 12 is added in turn, its
-//!    parameters fitted on the fit runs only ([`fit`]); the effects are ranked by
-//!    the shrink of the gap, and a second effect is tried on top of the best.
-//! 4. **Validate**: the chosen effect with its fitted parameters on the check
-//!    runs: before, after, shrink; `none` within the noise, `unexplained` when
-//!    no effect shrinks the gap on both.
-//! 5. **Report** ([`report`]): the JSON of the contract, and a Markdown report.
+//!    recorded drive command (through the servo model) and load, for each run
+//!    prepared with its noise levels ([`run`]).
+//! 2. **Localise** ([`measure`], [`localise`], [`segment`], [`stats`]): the
+//!    residual per channel, per automatically found segment (moves, holds, load
+//!    steps, reversals) and per frequency band; whiteness and residual-input
+//!    tests at 99 %.
+//! 3. **Attribute** ([`candidates`]): every effect of docs/model.md section 12 is
+//!    added in turn, its parameters fitted on the fit runs only ([`fit`],
+//!    starting points from [`prefit`]); the effects are ranked by the shrink of
+//!    the gap, and a second effect is tried on top of the best.
+//! 4. **Validate** ([`policy`], [`reasons`]): the chosen effect with its fitted
+//!    parameters on the check runs: before, after, shrink; `none` within the
+//!    noise, `unexplained` when no effect shrinks the gap on both.
+//! 5. **Report** ([`diagnosis`], [`report`]): the JSON of the contract, and a
+//!    Markdown report.
+//!
+//! [`diagnose`] runs the steps; [`validation`] is its suite of synthetic runs
+//! with hidden effects.
 
+pub mod candidates;
 pub mod diagnose;
+pub mod diagnosis;
 pub mod fit;
+pub mod localise;
+pub mod measure;
+pub mod policy;
 pub mod prefit;
+pub mod progress;
+pub mod reasons;
 pub mod replay;
 pub mod report;
+pub mod run;
 pub mod segment;
 pub mod stats;
 pub mod validation;
 
 use std::path::{Path, PathBuf};
 
-use crate::plant::Plant;
-use crate::runlog::RunLog;
-use diagnose::{Diagnosis, Options, Run};
+use crate::io::files::{self, PathError};
+use crate::io::runlog::{LogError, RunLog};
+use crate::model::plant::Plant;
+use diagnose::Options;
+use diagnosis::Diagnosis;
+use report::ReportError;
+use run::Run;
 
-fn load(paths: &[PathBuf]) -> Result<Vec<Run>, String> {
+/// Why `host-sim gap` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GapError {
+    /// No fit or no check run.
+    #[error("give at least one --fit and one --check run log")]
+    NoRuns,
+    /// A run log could not be read.
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// A run log too short to diagnose.
+    #[error("{}: {rows} rows; a diagnosis needs at least 200", path.display())]
+    TooShort {
+        /// The log.
+        path: PathBuf,
+        /// Its rows.
+        rows: usize,
+    },
+    /// The JSON could not be made.
+    #[error("{0}")]
+    Json(serde_json::Error),
+    /// The JSON could not be written.
+    #[error(transparent)]
+    File(#[from] PathError),
+    /// The Markdown report could not be written.
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
+
+fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
     paths
         .iter()
         .map(|p| {
-            let log = RunLog::read(p).map_err(|e| e.to_string())?;
+            let log = RunLog::read(p)?;
             if log.len() < 200 {
-                return Err(format!(
-                    "{}: {} rows; a diagnosis needs at least 200",
-                    p.display(),
-                    log.len()
-                ));
+                return Err(GapError::TooShort {
+                    path: p.clone(),
+                    rows: log.len(),
+                });
             }
             let name = p
                 .file_name()
@@ -60,14 +109,14 @@ pub fn run_gap(
     json: &Path,
     report: Option<&Path>,
     opts: &Options,
-) -> Result<Diagnosis, String> {
+) -> Result<Diagnosis, GapError> {
     if fit.is_empty() || check.is_empty() {
-        return Err("give at least one --fit and one --check run log".into());
+        return Err(GapError::NoRuns);
     }
     let (fit, check) = (load(fit)?, load(check)?);
     let (d, details) = diagnose::diagnose(fit, check, &Plant::nominal(), opts);
-    let text = serde_json::to_string_pretty(&d).map_err(|e| e.to_string())?;
-    std::fs::write(json, text).map_err(|e| format!("{}: {e}", json.display()))?;
+    let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
+    files::write(json, text)?;
     if let Some(dir) = report {
         report::write(dir, &d, &details)?;
     }

@@ -9,10 +9,10 @@
 //! against the measured Xi finds the valley in about a second; the
 //! full-model fit then starts there.
 
-use super::diagnose::Run;
 use super::fit::{minimize, Bound};
-use crate::effects::{self, EffectKind, MotorLimit};
-use crate::plant::Plant;
+use super::run::Run;
+use crate::model::effects::{self, EffectKind, MotorLimit};
+use crate::model::plant::Plant;
 
 /// Squared Xi error (in units of `scale_m`) of the servo model with `limit`
 /// (or none) on one run; stops early once above `stop`.
@@ -160,10 +160,10 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::Effects;
-    use crate::rig::Rig;
-    use crate::runlog::RunLog;
-    use crate::scenario::{Command, Piecewise, Scenario, Signal};
+    use crate::io::runlog::RunLog;
+    use crate::model::effects::Effects;
+    use crate::model::rig::Rig;
+    use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
 
     /// An open-loop run of the rig with a motor limit; the prefit finds it.
     #[test]

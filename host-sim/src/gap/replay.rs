@@ -11,9 +11,9 @@
 //! (with the candidate `sensor_delay`, if any) would have reported at the log
 //! instants, for the channels the gap compares.
 
-use crate::rig::Rig;
-use crate::runlog::RunLog;
-use crate::sensors::{Readings, SensorMode, Sensors};
+use crate::io::runlog::RunLog;
+use crate::model::rig::Rig;
+use crate::model::sensors::{Readings, SensorMode, Sensors};
 
 /// The channels compared, in this order everywhere in the diagnosis.
 pub const CHANNELS: [&str; 4] = ["xo_m", "xi_m", "p1_pa", "p2_pa"];

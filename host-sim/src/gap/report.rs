@@ -3,9 +3,23 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::diagnose::{Candidate, Details, Diagnosis, Run, BLOCK};
+use super::diagnosis::{Candidate, Details, Diagnosis};
+use super::measure::BLOCK;
 use super::replay::{measured, Replay, CHANNELS};
-use crate::plot::{self, Panel, Series};
+use super::run::Run;
+use crate::io::files::{self, PathError};
+use crate::io::plot::{self, Panel, PlotError, Series};
+
+/// Why the report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// The directory or the Markdown file.
+    #[error(transparent)]
+    File(#[from] PathError),
+    /// A figure.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
 
 /// Display unit and scale of each channel (residual plots).
 const UNITS: [(&str, f64); 4] = [("um", 1e6), ("um", 1e6), ("kPa", 1e-3), ("kPa", 1e-3)];
@@ -30,7 +44,7 @@ fn residual_figure(
     before: &[Replay],
     after: &[Replay],
     verdict: &str,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let mut panels = Vec::new();
     for (i, run) in runs.iter().enumerate() {
         for c in 0..4 {
@@ -50,7 +64,7 @@ fn residual_figure(
     plot::save(path, &panels, 1000, 220)
 }
 
-fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), String> {
+fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), PlotError> {
     let shrinks = |pick: fn(&Candidate) -> f64| -> Vec<(f64, f64)> {
         d.candidates
             .iter()
@@ -71,15 +85,15 @@ fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), String> {
 }
 
 /// Write `report.md` and its figures into `dir`.
-pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
+    files::create_dir_all(dir)?;
     let runs: Vec<&Run> = details.fit.iter().chain(details.check.iter()).collect();
     residual_figure(
         &dir.join("residuals.png"),
         &runs,
         &details.before,
         &details.after,
-        &d.verdict,
+        d.verdict.name(),
     )?;
     candidates_figure(&dir.join("candidates.png"), d)?;
     let mut md = String::new();
@@ -179,5 +193,5 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), String>
     );
     let _ = writeln!(md, "Diagnosis took {:.1} s.", d.elapsed_s);
     let path = dir.join("report.md");
-    std::fs::write(&path, md).map_err(|e| format!("{}: {e}", path.display()))
+    Ok(files::write(&path, md)?)
 }

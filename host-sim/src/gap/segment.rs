@@ -12,7 +12,7 @@
 //! Consecutive samples with one label form a segment.
 
 use super::stats::noise_sigma;
-use crate::runlog::RunLog;
+use crate::io::runlog::RunLog;
 
 /// Segment labels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

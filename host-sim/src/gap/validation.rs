@@ -1,5 +1,5 @@
 //! Validation suite of the gap diagnosis: synthetic rig runs with hidden
-//! effects (each effect of plant.md section 12 at two magnitudes, some pairs,
+//! effects (each effect of docs/model.md section 12 at two magnitudes, some pairs,
 //! and clean runs), realistic sensors with noise, fit and check runs from
 //! different scenarios and controllers. The diagnosis sees only the logs;
 //! the truth stays here and scores the verdicts.
@@ -19,12 +19,15 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use super::diagnose::{diagnose, Diagnosis, Options, Run, NONE_GAP};
-use crate::effects::{EffectKind, Effects};
-use crate::plant::Plant;
-use crate::runlog::RunLog;
-use crate::scenario::{Command, Piecewise, Scenario, Signal};
-use crate::sensors::SensorMode;
+use super::diagnose::{diagnose, Options};
+use super::diagnosis::{Diagnosis, Verdict};
+use super::policy::NONE_GAP;
+use super::run::Run;
+use crate::io::runlog::RunLog;
+use crate::model::effects::{EffectKind, Effects};
+use crate::model::plant::Plant;
+use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
+use crate::model::sensors::SensorMode;
 use crate::sim::{run, RunSpec};
 
 /// One case of the suite.
@@ -151,9 +154,7 @@ pub fn rig_log(scenario: Scenario, kind: ControllerKind, effects: &Effects, seed
     };
     let trace = run(&spec).expect("valid run");
     let mut text = Vec::new();
-    RunLog::from_trace(&trace, &[])
-        .write_to(&mut text)
-        .expect("in memory");
+    trace.to_runlog(&[]).write_to(&mut text).expect("in memory");
     RunLog::parse(
         std::str::from_utf8(&text).expect("utf-8"),
         spec.scenario.name(),
@@ -174,12 +175,12 @@ impl Outcome {
     /// The verdict names the hidden effect (or `none` for a clean run).
     pub fn right(&self) -> bool {
         if self.case.truth.is_empty() {
-            self.diagnosis.verdict == "none"
+            self.diagnosis.verdict == Verdict::None
         } else {
             self.case
                 .truth
                 .iter()
-                .any(|k| k.name() == self.diagnosis.verdict)
+                .any(|k| Verdict::Effect(*k) == self.diagnosis.verdict)
         }
     }
 
@@ -335,7 +336,7 @@ pub fn markdown(out: &[Outcome]) -> String {
         *table
             .entry(o.truth_label())
             .or_default()
-            .entry(o.diagnosis.verdict.clone())
+            .entry(o.diagnosis.verdict.to_string())
             .or_default() += 1;
     }
     let mut s = String::new();

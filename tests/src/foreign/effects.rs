@@ -1,4 +1,4 @@
-//! Foreign unmodelled effects, one family per identifier of plant.md section 12.
+//! Foreign unmodelled effects, one family per identifier of docs/model.md section 12.
 //!
 //! Each form is deliberately not the textbook one a nominal-model project
 //! would reach for first:
@@ -276,7 +276,7 @@ pub enum Effect {
 }
 
 impl Effect {
-    /// The identifier of plant.md section 12.
+    /// The identifier of docs/model.md section 12.
     pub fn identifier(&self) -> &'static str {
         match self {
             Self::Leakage(_) => "leakage",

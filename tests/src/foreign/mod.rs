@@ -1,12 +1,12 @@
-//! An independent rig simulator for tests: the nominal plant of plant.md
+//! An independent rig simulator for tests: the nominal plant of docs/model.md
 //! written from the specification alone, realistic sensors, the dca-core
 //! controller in the loop, and unmodelled effects whose mathematical forms
 //! differ from the project's own effect models (see [`effects`]).
 //!
-//! Its logs (interfaces.md section 1) are the input of robustness tests of
+//! Its logs (docs/interfaces.md section 1) are the input of robustness tests of
 //! the gap diagnosis: the diagnosis never saw these forms.
 //!
-//! * [`cases`]: a small and a large magnitude per identifier of plant.md
+//! * [`cases`]: a small and a large magnitude per identifier of docs/model.md
 //!   section 12, two clean cases, two pairs, and `motor_limit-speedcap` (a
 //!   low no-load speed: the only motor limit that also shows in the `check`
 //!   scenario, whose forces stay below any force limit that can hold the
@@ -37,7 +37,7 @@ use effects::{
 pub struct ForeignCase {
     /// Case name, e.g. `leakage-small`.
     pub name: String,
-    /// The true identifiers (plant.md section 12); `["none"]` for a clean case.
+    /// The true identifiers (docs/model.md section 12); `["none"]` for a clean case.
     pub truth: Vec<&'static str>,
     /// The effects with their parameters.
     pub effects: Vec<Effect>,

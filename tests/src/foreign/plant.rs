@@ -1,13 +1,13 @@
-//! The nominal plant of plant.md sections 2-4 (`hose_model = "nonlinear"`),
+//! The nominal plant of docs/model.md sections 2-4 (`hose_model = "nonlinear"`),
 //! written from the specification text alone, in binary64, extended with
 //! optional state entries for the foreign effects of [`super::effects`].
 //!
-//! The state vector holds the 11 nominal states of plant.md section 2 at the
+//! The state vector holds the 11 nominal states of docs/model.md section 2 at the
 //! indices [`XI`] ... [`VG`] and, after them, the states some effects need
 //! (they stay at their initial value when the effect is absent).
 //!
 //! Integrator: classical RK4 with inputs held over a base tick of
-//! [`BASE_DT`] = 1e-4 s (plant.md section 4.2), but taken in
+//! [`BASE_DT`] = 1e-4 s (docs/model.md section 4.2), but taken in
 //! [`SUBSTEPS`] = 2 sub-steps of 5e-5 s each. The step function itself is
 //! generic in the step length, so the one-step vector of section 4.2
 //! (dt = 1e-4 s) can be checked too.
@@ -153,7 +153,7 @@ pub fn line_volumes(xp: f64, xo: f64) -> (f64, f64) {
     (v1, v2)
 }
 
-/// Rest state of plant.md section 4.1 for the load `ft0`; the effect states
+/// Rest state of docs/model.md section 4.1 for the load `ft0`; the effect states
 /// start at their equilibrium (zero deflections, ambient temperatures).
 pub fn initial_state(ft0: f64) -> State {
     let mut x = [0.0; N_STATE];
@@ -332,7 +332,7 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// A plant at rest under the load `ft0` (plant.md section 4.1).
+    /// A plant at rest under the load `ft0` (docs/model.md section 4.1).
     pub fn new(fx: Effects, ft0: f64) -> Self {
         let mut fx = fx;
         fx.settle(ft0);
@@ -345,7 +345,7 @@ impl Plant {
     }
 
     /// Advance one base tick with `v_cmd` and `ft` held, after the
-    /// ball-screw software limit of plant.md section 4.2.
+    /// ball-screw software limit of docs/model.md section 4.2.
     pub fn step(&mut self, v_cmd: f64, ft: f64) {
         let xi = self.x[XI];
         let v = if (xi >= X_MAX && v_cmd > 0.0) || (xi <= X_MIN && v_cmd < 0.0) {

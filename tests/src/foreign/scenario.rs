@@ -1,6 +1,6 @@
 //! Scenarios, the closed loop with the dca-core controller, and the run log.
 //!
-//! Per base tick k (t_k = k 1e-4 s), as plant.md section 6.1: sample the
+//! Per base tick k (t_k = k 1e-4 s), as docs/model.md section 6.1: sample the
 //! sensors at t_k, call [`Controller::step`] with the readings (f32) and
 //! r(t_k), then advance the plant one tick with that command and Ft(t_k)
 //! held. Every tenth tick (1 ms) a row is logged with the readings the
@@ -121,7 +121,7 @@ impl ForeignScenario {
     }
 }
 
-/// The closed-loop scenarios of plant.md section 7 (`step`, `sine`,
+/// The closed-loop scenarios of docs/model.md section 7 (`step`, `sine`,
 /// `stepload`, `sineload`) for the controller `kind`, for checking the
 /// nominal loop against section 10.
 pub fn paper_scenario(name: &str, kind: ControllerKind) -> Option<ScenarioSpec> {
@@ -169,7 +169,7 @@ pub struct ForeignRun {
 }
 
 impl ForeignRun {
-    /// The run log in the format of interfaces.md section 1.
+    /// The run log in the format of docs/interfaces.md section 1.
     pub fn to_csv(&self) -> String {
         let mut s = String::with_capacity(100 * (self.rows.len() + 4));
         s.push_str("# dca-log v1\n");

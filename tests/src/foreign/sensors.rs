@@ -1,4 +1,4 @@
-//! Realistic sensors of plant.md section 5 with a self-contained, seeded RNG.
+//! Realistic sensors of docs/model.md section 5 with a self-contained, seeded RNG.
 //!
 //! Random numbers: xoshiro256** seeded through splitmix64, Gaussian deviates
 //! by the Box-Muller transform (both values of a pair are used).
@@ -110,7 +110,7 @@ pub fn encoder(xi: f64) -> f64 {
     (xi / ENCODER_STEP).floor() * ENCODER_STEP
 }
 
-/// Sensor model: exact values or plant.md section 5's realistic sensors.
+/// Sensor model: exact values or docs/model.md section 5's realistic sensors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SensorMode {
     /// Every sensor returns the exact signal.

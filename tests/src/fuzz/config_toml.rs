@@ -18,8 +18,8 @@
 //!   separately).
 
 use dca_core::controller::{Controller, ControllerKind, Sample};
-use host_sim::batch::SweepParam;
-use host_sim::config::{ConfigFile, FileError};
+use host_sim::sim::batch::SweepParam;
+use host_sim::sim::config::{ConfigFile, FileError};
 
 use super::{line_limit, text};
 

@@ -13,9 +13,9 @@
 //! | [`console_rx()`] | `dca_app::console::Receiver`: the receive path between the byte interrupt and the console task |
 //! | [`frame()`] | `dca_app::frame`: HIL frame reader, decoder and link monitor |
 //! | [`settings_image()`] | `dca_app::settings::Settings::from_image` |
-//! | [`runlog()`] | `host_sim::runlog::RunLog::parse` |
-//! | [`scenario_toml()`] | `host_sim::config::ScenarioFile::load_str`, effects, controller tables |
-//! | [`config_toml()`] | `host_sim::config::ConfigFile` and `host_sim::batch::SweepParam::parse` |
+//! | [`runlog()`] | `host_sim::io::runlog::RunLog::parse` |
+//! | [`scenario_toml()`] | `host_sim::sim::config::ScenarioFile::load_str`, effects, controller tables |
+//! | [`config_toml()`] | `host_sim::sim::config::ConfigFile` and `host_sim::sim::batch::SweepParam::parse` |
 //!
 //! # Known defects
 //! A defect that is found but must be fixed outside the files this harness

@@ -1,7 +1,7 @@
 //! Run logs: [`RunLog::parse`] on arbitrary text (the input as UTF-8, invalid
 //! sequences replaced).
 //!
-//! Invariants (what `host_sim::runlog` promises):
+//! Invariants (what `host_sim::io::runlog` promises):
 //! * no panic;
 //! * an accepted log has the eight required columns and every optional one
 //!   of its header, all of one length (at least two rows), only finite
@@ -12,7 +12,7 @@
 //! * line ends do not matter: the same text with CR LF line ends gives the
 //!   same log or the same error.
 
-use host_sim::runlog::{LogError, RunLog, DT_REL_TOL, REQUIRED};
+use host_sim::io::runlog::{LogError, RunLog, DT_REL_TOL, REQUIRED};
 
 use super::{line_limit, text};
 

@@ -21,12 +21,12 @@
 use std::sync::OnceLock;
 
 use dca_core::params::PlantParams;
-use host_sim::config::{LoadedScenario, ScenarioFile};
-use host_sim::effects::Effects;
-use host_sim::plant::{HoseModel, Plant, NOMINAL_DT_S};
-use host_sim::rig::Rig;
-use host_sim::scenario::{tick_time_s, Command, Signal};
-use host_sim::sensors::SensorMode;
+use host_sim::model::effects::Effects;
+use host_sim::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
+use host_sim::model::rig::Rig;
+use host_sim::model::scenario::{tick_time_s, Command, Signal};
+use host_sim::model::sensors::SensorMode;
+use host_sim::sim::config::{LoadedScenario, ScenarioFile};
 
 use super::config_toml::{check_config, check_file_error};
 use super::text;

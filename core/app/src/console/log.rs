@@ -5,7 +5,7 @@ use core::fmt::Write;
 
 use crate::text::Buf;
 
-/// The run-log header the telemetry stream starts with (interfaces.md section
+/// The run-log header the telemetry stream starts with (docs/interfaces.md section
 /// 1), for `controller`; CR LF line ends.
 pub fn write_log_header<W: Write>(out: &mut W, controller: &str) {
     let _ = out.write_str("# dca-log v1\r\n# controller=");

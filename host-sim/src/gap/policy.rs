@@ -1,0 +1,128 @@
+//! The verdict's policy: the thresholds, and the decisions taken on the gaps
+//! the fits produced (which effect, if any, and whether a second one adds
+//! significantly). No prose here ([`super::reasons`]) and no fitting
+//! ([`super::candidates`]).
+
+use super::candidates::{CandidateFit, PairFit};
+use super::diagnosis::Verdict;
+use super::measure::Shrink;
+use crate::model::effects::EffectKind;
+
+/// Nominal gap (pooled over all runs) below which the verdict is `none`.
+pub const NONE_GAP: f64 = 1.0;
+/// Smallest shrink, on the fit and on the check runs, that explains a gap.
+pub const MIN_SHRINK: f64 = 0.3;
+/// Extra shrink of the remaining gap a second effect must give (fit and check).
+pub const SECOND_SHRINK: f64 = 0.3;
+
+/// The held-out runs confirm a model change that took their gap from
+/// `before` to `after`: it shrinks by at least `min_shrink`, or it ends
+/// within the noise (runs that show no gap beyond the noise do not excite
+/// the effect: they can refute it, not confirm it).
+pub fn confirms(before: f64, after: f64, min_shrink: f64) -> bool {
+    Shrink::new(before, after).shrink >= min_shrink || after < NONE_GAP
+}
+
+/// Whether to search for a second effect: the runs show a gap beyond the
+/// noise (`pooled`) and the best single candidate leaves one on the fit runs.
+pub fn wants_pair(pooled: f64, best: &CandidateFit, second_effect: bool) -> bool {
+    pooled >= NONE_GAP && second_effect && best.candidate.fit_after >= NONE_GAP
+}
+
+/// Whether changes that leave the check runs at the gap `before_check` can
+/// only fail to refute an effect, not confirm it (they do not excite it).
+pub fn check_within_noise(before_check: f64) -> bool {
+    before_check < NONE_GAP
+}
+
+/// The second effect of a pair, on top of the verdict's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SecondEffect {
+    /// The effect of the pair that is not the verdict's.
+    pub other: EffectKind,
+    /// Extra shrink of the remaining gap on the fit runs.
+    pub fit_extra: f64,
+    /// Extra shrink of the remaining gap on the check runs.
+    pub check_extra: f64,
+    /// Both extra shrinks reach [`SECOND_SHRINK`].
+    pub significant: bool,
+}
+
+/// The decision.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Decision {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Index of the verdict's effect among the ranked candidates.
+    pub chosen: Option<usize>,
+    /// The pair's other effect, when a pair was fitted (and the runs show a
+    /// gap beyond the noise).
+    pub second: Option<SecondEffect>,
+}
+
+/// Decide on the ranked candidates (best first) and the pair, given the
+/// nominal gaps: pooled over all runs, of the fit runs and of the check runs.
+///
+/// `none` when the pooled gap is within the noise; else the best single
+/// effect when it shrinks the gap by [`MIN_SHRINK`] on the fit runs and the
+/// check runs confirm it ([`confirms`]); else the pair's first effect when
+/// the pair does so together; else `unexplained`.
+pub fn decide(
+    pooled: f64,
+    before_fit: f64,
+    before_check: f64,
+    ranked: &[CandidateFit],
+    pair: Option<&PairFit>,
+) -> Decision {
+    if pooled < NONE_GAP {
+        return Decision {
+            verdict: Verdict::None,
+            chosen: None,
+            second: None,
+        };
+    }
+    let explains = |fit_after: f64, check_after: f64| {
+        Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
+            && confirms(before_check, check_after, MIN_SHRINK)
+    };
+    let best = &ranked[0].candidate;
+    let chosen = if explains(best.fit_after, best.check_after) {
+        Some(0)
+    } else {
+        pair.filter(|p| explains(p.fit_after, p.check_after))
+            .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
+    };
+    let verdict = chosen.map_or(Verdict::Unexplained, |i| Verdict::Effect(ranked[i].kind));
+    let second = pair.map(|p| {
+        // The extra shrink the other effect gives on top of the verdict's
+        // (on top of the nominal model when nothing explains the gap).
+        let (base_fit, base_check) = match chosen {
+            Some(i) => (
+                ranked[i].candidate.fit_after,
+                ranked[i].candidate.check_after,
+            ),
+            None => (before_fit, before_check),
+        };
+        let other = if verdict == Verdict::Effect(p.first) {
+            p.second
+        } else {
+            p.first
+        };
+        let fit_extra = Shrink::new(base_fit, p.fit_after).shrink;
+        let check_extra = Shrink::new(base_check, p.check_after).shrink;
+        SecondEffect {
+            other,
+            fit_extra,
+            check_extra,
+            // Strict for the second effect: the check runs must shrink, not
+            // merely stay within the noise (an extra effect fitted on top
+            // overfits easily).
+            significant: fit_extra >= SECOND_SHRINK && check_extra >= SECOND_SHRINK,
+        }
+    });
+    Decision {
+        verdict,
+        chosen,
+        second,
+    }
+}

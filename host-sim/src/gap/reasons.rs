@@ -1,0 +1,81 @@
+//! The diagnosis's reasons in English: one sentence (and its additions) per
+//! outcome of the policy ([`super::policy`]).
+
+use super::candidates::PairFit;
+use super::diagnosis::Candidate;
+use super::measure::Shrink;
+use super::policy::{MIN_SHRINK, NONE_GAP};
+use crate::model::effects::EffectKind;
+
+/// The verdict `none`.
+pub fn within_noise(pooled: f64) -> String {
+    format!(
+        "the nominal model agrees with the runs within their noise (pooled gap {pooled:.2} < {NONE_GAP})"
+    )
+}
+
+/// The verdict `unexplained`: what the best candidate (and the best pair, if
+/// one was fitted) achieved against what was needed. `before_*` are the
+/// nominal model's gaps of the fit and check runs.
+pub fn unexplained(
+    pooled: f64,
+    best: &Candidate,
+    pair: Option<&PairFit>,
+    before_fit: f64,
+    before_check: f64,
+) -> String {
+    format!(
+        "gap {pooled:.2} beyond the noise; the best candidate ({}) shrinks it by {:.0} % on the fit runs and {:.0} % on the check runs (needed: {:.0} % on both, or the check runs brought or kept within the noise){}",
+        best.effect,
+        best.fit_shrink * 100.0,
+        best.check_shrink * 100.0,
+        MIN_SHRINK * 100.0,
+        match pair {
+            Some(p) => format!(
+                ", and the best pair ({} + {}) by {:.0} % / {:.0} %",
+                p.first.name(),
+                p.second.name(),
+                Shrink::new(before_fit, p.fit_after).shrink * 100.0,
+                Shrink::new(before_check, p.check_after).shrink * 100.0
+            ),
+            None => String::new(),
+        }
+    )
+}
+
+/// An effect as the verdict, against the next candidate; with
+/// `check_within_noise`, why the check runs cannot confirm it (they stay at
+/// the nominal gap `before_check`).
+pub fn explained(
+    chosen: &Candidate,
+    runner_up: Option<&Candidate>,
+    check_within_noise: bool,
+    before_check: f64,
+) -> String {
+    let mut reason = format!(
+        "{} shrinks the gap by {:.0} % on the fit runs and {:.0} % on the held-out check runs; the next candidate ({}) by {:.0} % / {:.0} %",
+        chosen.effect,
+        chosen.fit_shrink * 100.0,
+        chosen.check_shrink * 100.0,
+        runner_up.map(|x| x.effect.as_str()).unwrap_or("-"),
+        runner_up.map(|x| x.fit_shrink * 100.0).unwrap_or(0.0),
+        runner_up.map(|x| x.check_shrink * 100.0).unwrap_or(0.0)
+    );
+    if check_within_noise {
+        reason.push_str(&format!(
+            "; the check runs agree with the nominal model within the noise (gap {before_check:.2}) and stay so with the effect ({:.2}): they do not excite it, so they cannot confirm it, only not refute it",
+            chosen.check_after
+        ));
+    }
+    reason
+}
+
+/// The addition when a second effect shrinks the remaining gap significantly.
+pub fn second_added(other: EffectKind, fit_extra: f64, check_extra: f64) -> String {
+    format!(
+        "; adding {} shrinks the remaining gap by a further {:.0} % / {:.0} %",
+        other.name(),
+        fit_extra * 100.0,
+        check_extra * 100.0
+    )
+}

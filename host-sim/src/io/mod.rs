@@ -1,0 +1,11 @@
+//! Layer `io` (the bottom): file formats and output helpers.
+//!
+//! * [`runlog`]: the run-log CSV format of docs/interfaces.md section 1, written and read;
+//! * [`plot`]: PNG figures for the reports;
+//! * [`files`]: reading and writing files with errors that name the path.
+//!
+//! Imports nothing from the crate: every other layer may use it.
+
+pub mod files;
+pub mod plot;
+pub mod runlog;

@@ -1,0 +1,873 @@
+//! Unmodelled effects of docs/model.md section 12: composable, off by default.
+//!
+//! Users switch them on to emulate their own rig; the gap diagnosis adds them
+//! one at a time to the nominal model as candidate explanations. Each effect
+//! has documented parameters (SI, units in the names), a typical magnitude,
+//! and bounds the diagnosis fits within.
+//!
+//! | identifier | model | parameters |
+//! |---|---|---|
+//! | `leakage` | internal leakage line 1 -> line 2 across the pistons, Q = G dP ((abs(dP) + 10 kPa) / 1 MPa)^(n - 1), dP = P1 - P2: laminar (n = 1) to orifice-like (n = 0.5) | `g_m3pspa` (conductance at 1 MPa, typ. 1e-13: 0.2 cm^3/s at 2 MPa), `exponent` (typ. 1) |
+//! | `friction` | seal friction on the actuating piston, Coulomb + Stribeck, smoothed: F = (Fc + (Fs - Fc) exp(-(v/vs)^2)) tanh(v/v_eps) | `coulomb_n` (typ. 30), `static_n` (typ. 45), `stribeck_mps` (typ. 2e-3); v_eps = 1e-4 m/s |
+//! | `backlash` | play and axial compliance between the motor (encoder, Xi) and the power piston, which carries the hydraulic force F = AP1 P1 - AP2 P2: Xp = Xi - (play/2) tanh(F / 10 N) - F / k (a massless piston: it crosses the play where F changes sign and floats in it while F is near 0) | `play_m` (typ. 50e-6), `stiffness_npm` (typ. 2e7) |
+//! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
+//! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
+//! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
+//! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
+//! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
+//!
+//! With every effect off the plant is exactly the nominal model of docs/model.md.
+
+use serde::Deserialize;
+
+/// Internal leakage across the pistons.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Leakage {
+    /// Conductance from line 1 to line 2 at a 1 MPa difference, m^3/(s Pa).
+    pub g_m3pspa: f64,
+    /// Flow exponent: 1 laminar (Q proportional to dP), 0.5 orifice-like.
+    #[serde(default = "one")]
+    pub exponent: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Reference pressure difference of the leakage conductance, Pa.
+pub const LEAK_P_REF_PA: f64 = 1e6;
+/// Pressure difference below which the leakage stays laminar, Pa.
+pub const LEAK_P_SMOOTH_PA: f64 = 1e4;
+
+/// Seal friction on the actuating piston beyond the viscous term.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    /// Coulomb (sliding) friction, N.
+    pub coulomb_n: f64,
+    /// Static (breakaway) friction, N (>= coulomb_n).
+    pub static_n: f64,
+    /// Stribeck velocity, m/s.
+    #[serde(default = "default_stribeck")]
+    pub stribeck_mps: f64,
+}
+
+fn default_stribeck() -> f64 {
+    2e-3
+}
+
+/// Velocity below which friction is smoothed to zero (tanh), m/s.
+pub const FRICTION_SMOOTH_MPS: f64 = 1e-4;
+
+/// Play between motor and power piston.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Backlash {
+    /// Total play, m.
+    pub play_m: f64,
+    /// Axial stiffness of the screw, nut and coupling, N/m.
+    #[serde(default = "default_stiffness")]
+    pub stiffness_npm: f64,
+}
+
+fn default_stiffness() -> f64 {
+    2e7
+}
+
+/// Force over which the piston crosses from one flank of the play to the other, N.
+pub const BACKLASH_FLANK_N: f64 = 10.0;
+
+/// Entrained air.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Air {
+    /// Air volume fraction at atmospheric pressure.
+    pub fraction: f64,
+    /// Polytropic index of the air bubbles.
+    #[serde(default = "default_kappa")]
+    pub kappa: f64,
+}
+
+fn default_kappa() -> f64 {
+    1.4
+}
+
+/// Delay and lag of the measurements.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorDelay {
+    /// Transport delay of the LVDT reading, s.
+    #[serde(default)]
+    pub xo_delay_s: f64,
+    /// First-order time constant of the LVDT reading, s.
+    #[serde(default)]
+    pub xo_tau_s: f64,
+    /// First-order time constant of the pressure readings, s.
+    #[serde(default)]
+    pub p_tau_s: f64,
+}
+
+/// Servo torque and acceleration limits.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MotorLimit {
+    /// Largest axial force of the drive on the screw, N.
+    pub force_max_n: f64,
+    /// Motor and screw inertia reflected to the screw axis, kg.
+    pub mass_eq_kg: f64,
+    /// Highest speed the drive reaches, m/s.
+    #[serde(default = "default_speed_max")]
+    pub speed_max_mps: f64,
+}
+
+fn default_speed_max() -> f64 {
+    dca_core::params::PlantParams::NOMINAL.v_max_mps
+}
+
+/// Rate-independent hose-wall hysteresis.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct HoseHysteresis {
+    /// Compliance added while the play is engaged, m^3/Pa.
+    pub c_m3pp: f64,
+    /// Share of the hose wall compliance held while the play is not engaged (0 to 1).
+    #[serde(default)]
+    pub stuck_share: f64,
+    /// Pressure change after a reversal over which the wall yields, Pa.
+    pub yield_pa: f64,
+}
+
+/// Accumulator gas temperature relaxation.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AccumulatorThermal {
+    /// Thermal time constant of the gas, s.
+    pub tau_s: f64,
+}
+
+/// Ambient (and initial) gas temperature, K.
+pub const T_AMBIENT_K: f64 = 293.15;
+
+/// The set of active effects (all `None`: the nominal plant).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Effects {
+    /// `leakage`.
+    pub leakage: Option<Leakage>,
+    /// `friction`.
+    pub friction: Option<Friction>,
+    /// `backlash`.
+    pub backlash: Option<Backlash>,
+    /// `air`.
+    pub air: Option<Air>,
+    /// `sensor_delay`.
+    pub sensor_delay: Option<SensorDelay>,
+    /// `motor_limit`.
+    pub motor_limit: Option<MotorLimit>,
+    /// `hose_hysteresis`.
+    pub hose_hysteresis: Option<HoseHysteresis>,
+    /// `accumulator_thermal`.
+    pub accumulator_thermal: Option<AccumulatorThermal>,
+}
+
+/// The effect identifiers of docs/model.md section 12.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EffectKind {
+    /// Internal leakage.
+    Leakage,
+    /// Seal friction.
+    Friction,
+    /// Ball-screw play.
+    Backlash,
+    /// Entrained air.
+    Air,
+    /// Measurement delay.
+    SensorDelay,
+    /// Servo limits.
+    MotorLimit,
+    /// Hose hysteresis.
+    HoseHysteresis,
+    /// Accumulator thermal drift.
+    AccumulatorThermal,
+}
+
+/// One parameter of an effect: name (with unit), typical value, fit bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    /// Name with unit suffix, as in the configuration files.
+    pub name: &'static str,
+    /// A typical magnitude on a rig of this size.
+    pub typical: f64,
+    /// Smallest value a fit may take.
+    pub min: f64,
+    /// Largest value a fit may take.
+    pub max: f64,
+}
+
+/// How far beyond its fit range a parameter may be set: an effect can be
+/// emulated stronger than the diagnosis would fit it, but not by orders of
+/// magnitude (a leakage conductance of 1 instead of 1e-13 makes the plant
+/// non-finite after one step).
+pub const VALID_SPAN: f64 = 10.0;
+
+/// Largest polytropic index of the entrained air (a monatomic gas, 5/3).
+pub const KAPPA_MAX: f64 = 5.0 / 3.0;
+
+const fn p(name: &'static str, typical: f64, min: f64, max: f64) -> ParamSpec {
+    ParamSpec {
+        name,
+        typical,
+        min,
+        max,
+    }
+}
+
+impl EffectKind {
+    /// All effects, in the order of docs/model.md section 12.
+    pub const ALL: [Self; 8] = [
+        Self::Leakage,
+        Self::Friction,
+        Self::Backlash,
+        Self::Air,
+        Self::SensorDelay,
+        Self::MotorLimit,
+        Self::HoseHysteresis,
+        Self::AccumulatorThermal,
+    ];
+
+    /// The identifier of docs/model.md section 12.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Leakage => "leakage",
+            Self::Friction => "friction",
+            Self::Backlash => "backlash",
+            Self::Air => "air",
+            Self::SensorDelay => "sensor_delay",
+            Self::MotorLimit => "motor_limit",
+            Self::HoseHysteresis => "hose_hysteresis",
+            Self::AccumulatorThermal => "accumulator_thermal",
+        }
+    }
+
+    /// Parse an identifier.
+    pub fn by_name(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == s)
+    }
+
+    /// The parameters, in the order [`Effects::set`] takes them.
+    pub fn params(self) -> &'static [ParamSpec] {
+        match self {
+            Self::Leakage => LEAKAGE_PARAMS,
+            Self::Friction => FRICTION_PARAMS,
+            Self::Backlash => BACKLASH_PARAMS,
+            Self::Air => AIR_PARAMS,
+            Self::SensorDelay => SENSOR_DELAY_PARAMS,
+            Self::MotorLimit => MOTOR_LIMIT_PARAMS,
+            Self::HoseHysteresis => HOSE_HYSTERESIS_PARAMS,
+            Self::AccumulatorThermal => ACCUMULATOR_THERMAL_PARAMS,
+        }
+    }
+}
+
+const LEAKAGE_PARAMS: &[ParamSpec] = &[
+    p("g_m3pspa", 1e-13, 1e-16, 1e-11),
+    p("exponent", 1.0, 0.5, 1.0),
+];
+const FRICTION_PARAMS: &[ParamSpec] = &[
+    p("coulomb_n", 30.0, 0.0, 500.0),
+    p("static_n", 45.0, 0.0, 800.0),
+    p("stribeck_mps", 2e-3, 1e-4, 5e-2),
+];
+const BACKLASH_PARAMS: &[ParamSpec] = &[
+    p("play_m", 50e-6, 0.0, 2e-3),
+    p("stiffness_npm", 2e7, 1e6, 1e10),
+];
+const AIR_PARAMS: &[ParamSpec] = &[p("fraction", 0.005, 0.0, 0.1)];
+const SENSOR_DELAY_PARAMS: &[ParamSpec] = &[
+    p("xo_delay_s", 3e-3, 0.0, 0.1),
+    p("xo_tau_s", 2e-3, 0.0, 0.1),
+    p("p_tau_s", 1e-3, 0.0, 0.1),
+];
+const MOTOR_LIMIT_PARAMS: &[ParamSpec] = &[
+    p("force_max_n", 2000.0, 50.0, 1e5),
+    p("mass_eq_kg", 200.0, 5.0, 1e5),
+    p("speed_max_mps", 0.1, 0.005, 0.1),
+];
+const HOSE_HYSTERESIS_PARAMS: &[ParamSpec] = &[
+    p("c_m3pp", 2e-13, 0.0, 5e-12),
+    p("stuck_share", 0.0, 0.0, 1.0),
+    p("yield_pa", 1e5, 1e3, 2e6),
+];
+const ACCUMULATOR_THERMAL_PARAMS: &[ParamSpec] = &[p("tau_s", 5.0, 0.05, 1000.0)];
+
+impl Effects {
+    /// No effect: the nominal plant.
+    pub const NONE: Self = Self {
+        leakage: None,
+        friction: None,
+        backlash: None,
+        air: None,
+        sensor_delay: None,
+        motor_limit: None,
+        hose_hysteresis: None,
+        accumulator_thermal: None,
+    };
+
+    /// True when no effect is active.
+    pub fn is_none(&self) -> bool {
+        *self == Self::NONE
+    }
+
+    /// The active effects.
+    pub fn active(&self) -> Vec<EffectKind> {
+        EffectKind::ALL
+            .into_iter()
+            .filter(|k| self.get(*k).is_some())
+            .collect()
+    }
+
+    /// The parameters of effect `k` if active, in [`EffectKind::params`] order.
+    pub fn get(&self, k: EffectKind) -> Option<Vec<f64>> {
+        Some(match k {
+            EffectKind::Leakage => {
+                let l = self.leakage?;
+                vec![l.g_m3pspa, l.exponent]
+            }
+            EffectKind::Friction => {
+                let f = self.friction?;
+                vec![f.coulomb_n, f.static_n, f.stribeck_mps]
+            }
+            EffectKind::Backlash => {
+                let b = self.backlash?;
+                vec![b.play_m, b.stiffness_npm]
+            }
+            EffectKind::Air => vec![self.air?.fraction],
+            EffectKind::SensorDelay => {
+                let s = self.sensor_delay?;
+                vec![s.xo_delay_s, s.xo_tau_s, s.p_tau_s]
+            }
+            EffectKind::MotorLimit => {
+                let m = self.motor_limit?;
+                vec![m.force_max_n, m.mass_eq_kg, m.speed_max_mps]
+            }
+            EffectKind::HoseHysteresis => {
+                let h = self.hose_hysteresis?;
+                vec![h.c_m3pp, h.stuck_share, h.yield_pa]
+            }
+            EffectKind::AccumulatorThermal => vec![self.accumulator_thermal?.tau_s],
+        })
+    }
+
+    /// Switch effect `k` on with `v` (in [`EffectKind::params`] order; missing
+    /// entries take the typical value), or off with `None`.
+    pub fn set(&mut self, k: EffectKind, v: Option<&[f64]>) {
+        let Some(v) = v else {
+            match k {
+                EffectKind::Leakage => self.leakage = None,
+                EffectKind::Friction => self.friction = None,
+                EffectKind::Backlash => self.backlash = None,
+                EffectKind::Air => self.air = None,
+                EffectKind::SensorDelay => self.sensor_delay = None,
+                EffectKind::MotorLimit => self.motor_limit = None,
+                EffectKind::HoseHysteresis => self.hose_hysteresis = None,
+                EffectKind::AccumulatorThermal => self.accumulator_thermal = None,
+            }
+            return;
+        };
+        let specs = k.params();
+        let at = |i: usize| v.get(i).copied().unwrap_or(specs[i].typical);
+        match k {
+            EffectKind::Leakage => {
+                self.leakage = Some(Leakage {
+                    g_m3pspa: at(0),
+                    exponent: at(1),
+                })
+            }
+            EffectKind::Friction => {
+                self.friction = Some(Friction {
+                    coulomb_n: at(0),
+                    static_n: at(1),
+                    stribeck_mps: at(2),
+                })
+            }
+            EffectKind::Backlash => {
+                self.backlash = Some(Backlash {
+                    play_m: at(0),
+                    stiffness_npm: at(1),
+                })
+            }
+            EffectKind::Air => {
+                self.air = Some(Air {
+                    fraction: at(0),
+                    kappa: default_kappa(),
+                })
+            }
+            EffectKind::SensorDelay => {
+                self.sensor_delay = Some(SensorDelay {
+                    xo_delay_s: at(0),
+                    xo_tau_s: at(1),
+                    p_tau_s: at(2),
+                })
+            }
+            EffectKind::MotorLimit => {
+                self.motor_limit = Some(MotorLimit {
+                    force_max_n: at(0),
+                    mass_eq_kg: at(1),
+                    speed_max_mps: at(2),
+                })
+            }
+            EffectKind::HoseHysteresis => {
+                self.hose_hysteresis = Some(HoseHysteresis {
+                    c_m3pp: at(0),
+                    stuck_share: at(1),
+                    yield_pa: at(2),
+                })
+            }
+            EffectKind::AccumulatorThermal => {
+                self.accumulator_thermal = Some(AccumulatorThermal { tau_s: at(0) })
+            }
+        }
+    }
+
+    /// Parse a command-line effect: `name` (typical parameters) or
+    /// `name:param=value,param=value`.
+    pub fn parse_arg(&mut self, s: &str) -> Result<(), EffectError> {
+        let (name, rest) = s.split_once(':').unwrap_or((s, ""));
+        let k = EffectKind::by_name(name.trim()).ok_or_else(|| EffectError::UnknownEffect {
+            name: name.to_string(),
+        })?;
+        let specs = k.params();
+        let mut v: Vec<f64> = specs.iter().map(|p| p.typical).collect();
+        for kv in rest.split(',').filter(|s| !s.trim().is_empty()) {
+            let (pn, pv) = kv
+                .split_once('=')
+                .ok_or_else(|| EffectError::NotParamValue {
+                    effect: name.to_string(),
+                    item: kv.to_string(),
+                })?;
+            let i = specs
+                .iter()
+                .position(|p| p.name == pn.trim())
+                .ok_or_else(|| EffectError::UnknownParam {
+                    effect: name.to_string(),
+                    param: pn.to_string(),
+                    kind: k,
+                })?;
+            v[i] = pv
+                .trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| EffectError::NotFinite {
+                    effect: name.to_string(),
+                    value: pv.to_string(),
+                })?;
+        }
+        self.set(k, Some(&v));
+        self.validate()
+    }
+
+    /// Check every active effect's parameters.
+    pub fn validate(&self) -> Result<(), EffectError> {
+        for k in self.active() {
+            let v = self.get(k).unwrap_or_default();
+            for (x, s) in v.iter().zip(k.params()) {
+                let most = VALID_SPAN * s.max;
+                if !(x.is_finite() && *x >= 0.0 && *x <= most) {
+                    return Err(EffectError::OutOfRange {
+                        kind: k,
+                        param: s.name,
+                        value: *x,
+                        most,
+                        max: s.max,
+                    });
+                }
+            }
+        }
+        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
+        if let Some(a) = self.air {
+            if !(1.0..=KAPPA_MAX).contains(&a.kappa) {
+                return Err(EffectError::Kappa(a.kappa));
+            }
+        }
+        if let Some(f) = self.friction {
+            if f.stribeck_mps <= 0.0 {
+                return constraint(EffectKind::Friction, "stribeck_mps must be > 0");
+            }
+        }
+        if let Some(m) = self.motor_limit {
+            if m.force_max_n <= 0.0 || m.mass_eq_kg <= 0.0 || m.speed_max_mps <= 0.0 {
+                return constraint(
+                    EffectKind::MotorLimit,
+                    "force_max_n, mass_eq_kg and speed_max_mps must be > 0",
+                );
+            }
+        }
+        if let Some(l) = self.leakage {
+            if !(l.exponent > 0.0 && l.exponent <= 2.0) {
+                return constraint(EffectKind::Leakage, "exponent must be in (0, 2]");
+            }
+        }
+        if let Some(b) = self.backlash {
+            if b.stiffness_npm <= 0.0 {
+                return constraint(EffectKind::Backlash, "stiffness_npm must be > 0");
+            }
+        }
+        if let Some(h) = self.hose_hysteresis {
+            if h.stuck_share > 1.0 || h.yield_pa <= 0.0 {
+                return constraint(
+                    EffectKind::HoseHysteresis,
+                    "stuck_share must be <= 1 and yield_pa > 0",
+                );
+            }
+        }
+        if let Some(t) = self.accumulator_thermal {
+            if t.tau_s <= 0.0 {
+                return constraint(EffectKind::AccumulatorThermal, "tau_s must be > 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A command-line effect that does not parse, or effect parameters out of range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EffectError {
+    /// No effect has this name.
+    #[error("unknown effect '{name}': expected one of {}", effect_names())]
+    UnknownEffect {
+        /// The name given.
+        name: String,
+    },
+    /// A parameter item without `=`.
+    #[error("effect {effect}: '{item}' is not param=value")]
+    NotParamValue {
+        /// The effect as named.
+        effect: String,
+        /// The item.
+        item: String,
+    },
+    /// The effect has no parameter of this name.
+    #[error(
+        "effect {effect}: unknown parameter '{param}' (expected {})",
+        param_names(*kind)
+    )]
+    UnknownParam {
+        /// The effect as named.
+        effect: String,
+        /// The parameter given.
+        param: String,
+        /// The effect.
+        kind: EffectKind,
+    },
+    /// A value that is not a finite number.
+    #[error("effect {effect}: '{value}' is not a finite number")]
+    NotFinite {
+        /// The effect as named.
+        effect: String,
+        /// The value given.
+        value: String,
+    },
+    /// A parameter outside [0, VALID_SPAN times its fit bound].
+    #[error(
+        "effect {}: {param} = {value} must be in [0, {most:e}] ({span} times the \
+         largest value a fit takes, {max:e})",
+        kind.name(),
+        span = VALID_SPAN
+    )]
+    OutOfRange {
+        /// The effect.
+        kind: EffectKind,
+        /// The parameter.
+        param: &'static str,
+        /// Its value.
+        value: f64,
+        /// The largest value accepted.
+        most: f64,
+        /// The largest value a fit takes.
+        max: f64,
+    },
+    /// The air's polytropic exponent outside [1, KAPPA_MAX].
+    #[error(
+        "effect air: kappa = {0} must be in [1, {kappa_max:.3}] (isothermal to \
+         adiabatic monatomic gas)",
+        kappa_max = KAPPA_MAX
+    )]
+    Kappa(f64),
+    /// Parameters that break a relation the effect needs.
+    #[error("effect {}: {requirement}", kind.name())]
+    Constraint {
+        /// The effect.
+        kind: EffectKind,
+        /// What must hold.
+        requirement: &'static str,
+    },
+}
+
+fn effect_names() -> String {
+    let all: Vec<&str> = EffectKind::ALL.iter().map(|k| k.name()).collect();
+    all.join(", ")
+}
+
+fn param_names(kind: EffectKind) -> String {
+    let all: Vec<&str> = kind.params().iter().map(|p| p.name).collect();
+    all.join(", ")
+}
+
+/// Leakage flow from line 1 to line 2, m^3/s.
+pub fn leak_flow_m3ps(l: &Leakage, p1_pa: f64, p2_pa: f64) -> f64 {
+    let dp = p1_pa - p2_pa;
+    if l.exponent == 1.0 {
+        return l.g_m3pspa * dp;
+    }
+    let r = (dp.abs() + LEAK_P_SMOOTH_PA) / LEAK_P_REF_PA;
+    l.g_m3pspa * dp * libm::pow(r, l.exponent - 1.0)
+}
+
+/// Friction force opposing the actuating piston's velocity, N (sign of -v).
+pub fn friction_force_n(f: &Friction, v_mps: f64) -> f64 {
+    let r = v_mps / f.stribeck_mps;
+    let mag = f.coulomb_n + (f.static_n - f.coulomb_n) * libm::exp(-r * r);
+    -mag * libm::tanh(v_mps / FRICTION_SMOOTH_MPS)
+}
+
+/// Effective bulk modulus of oil with entrained air at gauge pressure `p_pa`,
+/// returned as its inverse (the compressibility), 1/Pa.
+pub fn compressibility_ppa(a: &Air, beta_e_pa: f64, p_pa: f64, p_atm_pa: f64) -> f64 {
+    // The absolute pressure is kept above 5 % of atmospheric (no vacuum).
+    let p_abs = (p_pa + p_atm_pa).max(0.05 * p_atm_pa);
+    1.0 / beta_e_pa + a.fraction / (a.kappa * p_abs) * libm::pow(p_atm_pa / p_abs, 1.0 / a.kappa)
+}
+
+/// Engagement of the hose hysteresis (0 just after a pressure reversal, 1
+/// once the wall has yielded) for the hysteretic pressure `z_pa` and the
+/// direction of the line pressure's rate `dp`.
+pub fn hysteresis_engagement(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
+    let sigma = if dp > 0.0 {
+        1.0
+    } else if dp < 0.0 {
+        -1.0
+    } else {
+        0.0
+    };
+    (0.5 * (1.0 + sigma * z_pa / h.yield_pa)).clamp(0.0, 1.0)
+}
+
+/// Rate of the hysteretic pressure: dz = dP - abs(dP) z / r.
+pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
+    dp - dp.abs() * z_pa / h.yield_pa
+}
+
+/// Servo acceleration towards the speed command `vc_mps` (already within
+/// the nominal +-v_max) from the speed `v_mps`: the nominal first-order
+/// servo with time constant `tau_s`, or under `limit` its speed cap and
+/// force limit against the hydraulic force `f_load_n`.
+pub fn servo_accel(
+    limit: Option<&MotorLimit>,
+    vc_mps: f64,
+    v_mps: f64,
+    tau_s: f64,
+    f_load_n: f64,
+) -> f64 {
+    match limit {
+        Some(m) => {
+            let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
+            motor_accel(m, (target - v_mps) / tau_s, f_load_n)
+        }
+        None => (vc_mps - v_mps) / tau_s,
+    }
+}
+
+/// Servo acceleration under the motor limit: the speed loop asks for
+/// `a_mps2` towards its target against the hydraulic force `f_load_n` on the
+/// power piston (positive opposing extension); the drive's force is clamped.
+pub fn motor_accel(m: &MotorLimit, a_mps2: f64, f_load_n: f64) -> f64 {
+    let f = (m.mass_eq_kg * a_mps2 + f_load_n).clamp(-m.force_max_n, m.force_max_n);
+    (f - f_load_n) / m.mass_eq_kg
+}
+
+/// Offset of the motor ahead of the power piston under the backlash when
+/// the hydraulic force `f_load_n` (positive opposing extension) holds the
+/// piston against a flank, m: (play / 2) tanh(F / F_flank) + F / k.
+pub fn backlash_offset_m(b: &Backlash, f_load_n: f64) -> f64 {
+    0.5 * b.play_m * libm::tanh(f_load_n / BACKLASH_FLANK_N) + f_load_n / b.stiffness_npm
+}
+
+/// Derivative of [`backlash_offset_m`] with respect to the force, m/N.
+pub fn backlash_compliance_mpn(b: &Backlash, f_load_n: f64) -> f64 {
+    let t = libm::tanh(f_load_n / BACKLASH_FLANK_N);
+    0.5 * b.play_m * (1.0 - t * t) / BACKLASH_FLANK_N + 1.0 / b.stiffness_npm
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_and_set_round_trip() {
+        let mut e = Effects::NONE;
+        assert!(e.is_none());
+        e.parse_arg("leakage:g_m3pspa=2e-13").unwrap();
+        e.parse_arg("friction").unwrap();
+        assert_eq!(e.get(EffectKind::Leakage), Some(vec![2e-13, 1.0]));
+        assert_eq!(e.get(EffectKind::Friction).unwrap()[0], 30.0);
+        assert_eq!(e.active(), vec![EffectKind::Leakage, EffectKind::Friction]);
+        e.set(EffectKind::Leakage, None);
+        assert_eq!(e.active(), vec![EffectKind::Friction]);
+        for bad in [
+            "magic",
+            "leakage:g=1",
+            "leakage:g_m3pspa=x",
+            "air:fraction=-1",
+            "motor_limit:mass_eq_kg=0",
+            "leakage:exponent=0",
+            "backlash:stiffness_npm=0",
+            "hose_hysteresis:stuck_share=1.5",
+        ] {
+            let mut e = Effects::NONE;
+            assert!(e.parse_arg(bad).is_err(), "{bad}");
+        }
+        let toml: Effects =
+            toml::from_str("[air]\nfraction = 0.01\n[backlash]\nplay_m = 1e-4\n").unwrap();
+        assert_eq!(toml.air.unwrap().kappa, 1.4);
+        assert_eq!(toml.backlash.unwrap().play_m, 1e-4);
+        assert!(toml::from_str::<Effects>("[air]\nfractoin = 0.01\n").is_err());
+    }
+
+    #[test]
+    fn every_effect_has_params_within_bounds() {
+        for k in EffectKind::ALL {
+            assert_eq!(EffectKind::by_name(k.name()), Some(k));
+            for s in k.params() {
+                assert!(
+                    s.min <= s.typical && s.typical <= s.max,
+                    "{} {}",
+                    k.name(),
+                    s.name
+                );
+            }
+            let mut e = Effects::NONE;
+            e.set(k, Some(&[]));
+            assert_eq!(e.active(), vec![k]);
+            assert_eq!(
+                e.get(k).unwrap(),
+                k.params().iter().map(|p| p.typical).collect::<Vec<_>>()
+            );
+            e.validate().unwrap();
+        }
+    }
+
+    #[test]
+    fn leakage_exponent_bends_the_flow_law() {
+        let lam = Leakage {
+            g_m3pspa: 1e-13,
+            exponent: 1.0,
+        };
+        let orifice = Leakage {
+            exponent: 0.5,
+            ..lam
+        };
+        // Both give about G x 1 MPa at 1 MPa; the orifice law grows as sqrt(dP).
+        let q = |l: &Leakage, dp: f64| leak_flow_m3ps(l, dp, 0.0);
+        assert_eq!(q(&lam, 4e6), 1e-13 * 4e6);
+        assert!((q(&orifice, 1e6) / 1e-7 - 1.0).abs() < 0.01);
+        assert!((q(&orifice, 4e6) / q(&orifice, 1e6) - 2.0).abs() < 0.01);
+        assert_eq!(q(&orifice, -4e6), -q(&orifice, 4e6));
+        assert_eq!(q(&orifice, 0.0), 0.0);
+    }
+
+    #[test]
+    fn motor_force_limit_depends_on_the_load() {
+        let m = MotorLimit {
+            force_max_n: 500.0,
+            mass_eq_kg: 100.0,
+            speed_max_mps: 0.1,
+        };
+        // Free: +-5 m/s^2. Against 300 N: 2 m/s^2 out, 8 m/s^2 back.
+        assert_eq!(motor_accel(&m, 50.0, 0.0), 5.0);
+        assert_eq!(motor_accel(&m, 1.0, 0.0), 1.0);
+        assert!((motor_accel(&m, 50.0, 300.0) - 2.0).abs() < 1e-12);
+        assert!((motor_accel(&m, -50.0, 300.0) + 8.0).abs() < 1e-12);
+        // Beyond the stall force the screw is pushed back.
+        assert!(motor_accel(&m, 0.0, 800.0) < 0.0);
+    }
+
+    #[test]
+    fn backlash_flank_follows_the_force() {
+        let b = Backlash {
+            play_m: 100e-6,
+            stiffness_npm: 1e7,
+        };
+        assert_eq!(backlash_offset_m(&b, 0.0), 0.0);
+        assert!((backlash_offset_m(&b, 500.0) - (50e-6 + 50e-6)).abs() < 1e-9);
+        assert!((backlash_offset_m(&b, -500.0) + 100e-6).abs() < 1e-9);
+    }
+
+    #[test]
+    fn friction_opposes_motion_with_breakaway_peak() {
+        let f = Friction {
+            coulomb_n: 30.0,
+            static_n: 45.0,
+            stribeck_mps: 2e-3,
+        };
+        assert_eq!(friction_force_n(&f, 0.0), 0.0);
+        assert!(friction_force_n(&f, 1e-3) < -40.0);
+        assert!((friction_force_n(&f, 0.05) + 30.0).abs() < 1e-6);
+        assert!((friction_force_n(&f, -0.05) - 30.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn air_softens_most_at_low_pressure() {
+        let a = Air {
+            fraction: 0.005,
+            kappa: 1.4,
+        };
+        let beta = |p: f64| 1.0 / compressibility_ppa(&a, 1.2e9, p, 101_325.0);
+        assert!(beta(0.5e6) < 0.6e9, "{}", beta(0.5e6));
+        assert!(beta(3.0e6) > beta(0.5e6) * 2.0);
+        assert!(beta(3.0e6) < 1.2e9);
+        let none = Air {
+            fraction: 0.0,
+            kappa: 1.4,
+        };
+        assert_eq!(
+            compressibility_ppa(&none, 1.2e9, 1e6, 101_325.0),
+            1.0 / 1.2e9
+        );
+    }
+
+    #[test]
+    fn hysteresis_engages_after_the_pressure_moves_on() {
+        let h = HoseHysteresis {
+            c_m3pp: 1e-13,
+            stuck_share: 0.5,
+            yield_pa: 1e5,
+        };
+        // Rising pressure from z = 0: half engaged, then saturating towards 1.
+        let mut z = 0.0;
+        assert_eq!(hysteresis_engagement(&h, z, 1.0), 0.5);
+        for _ in 0..1000 {
+            z += hysteresis_rate(&h, z, 1e3) * 1.0e-3 * 1e3;
+        }
+        assert!(z > 0.99e5 && z <= 1e5, "{z}");
+        assert!(hysteresis_engagement(&h, z, 1.0) > 0.99);
+        // Right after the reversal: not engaged.
+        assert!(hysteresis_engagement(&h, z, -1.0) < 0.01);
+        assert_eq!(hysteresis_rate(&h, 1e5, 5.0), 0.0);
+        assert_eq!(hysteresis_rate(&h, 1e5, -5.0), -10.0);
+    }
+
+    #[test]
+    fn backlash_compliance_is_the_offset_slope() {
+        let b = Backlash {
+            play_m: 100e-6,
+            stiffness_npm: 1e7,
+        };
+        for f in [-300.0, -5.0, 0.0, 3.0, 40.0, 800.0] {
+            let num = (backlash_offset_m(&b, f + 1e-4) - backlash_offset_m(&b, f - 1e-4)) / 2e-4;
+            let g = backlash_compliance_mpn(&b, f);
+            assert!((num - g).abs() <= 1e-6 * g, "{f}: {num:e} vs {g:e}");
+        }
+    }
+}

@@ -1,0 +1,302 @@
+//! GRNN hose wall models for the plant (docs/model.md section 4, "Variants").
+//!
+//! The hose wall rate g (mm^3/s) comes from a GRNN: either the paper's static
+//! map g(P, dP/dt) (MPa, MPa/s) ([`GrnnHoseKind::Static`]) or the memory GRNN of
+//! [`super::memory`] with two low-pass filtered pressures as extra inputs
+//! ([`GrnnHoseKind::Memory`]). Because g depends on dP/dt, the continuity
+//! equation of a line is implicit in dP/dt:
+//!
+//! (V / beta_e) dP + 1e-9 g(1e-6 P, 1e-6 dP, memory) = Q        (SI: Pa/s, m^3/s)
+//!
+//! [`GrnnHose::solve_dp_paps`] solves it by safeguarded Newton on dP with the
+//! analytic GRNN slope: the root is bracketed by [(Q - g_max)/a, (Q - g_min)/a]
+//! (a = V / beta_e, g_min/g_max the extreme training outputs, which bound every
+//! GRNN output); a Newton step that leaves the current bracket, or a
+//! non-positive slope, is replaced by bisection; the iteration starts at the
+//! warm start (clamped into the bracket) and stops when the step is below
+//! 1e-3 Pa/s, after at most 30 iterations.
+//!
+//! Evaluation: the static map uses [`FastGrnn`] (table + truncated sum), the
+//! memory map [`Truncated`]; both within a stated bound of the direct sum.
+
+use std::sync::{Arc, OnceLock};
+
+use super::data::{DynamicData, QuasiStaticData};
+use super::fast::{FastGrnn, Truncated};
+use super::memory::{MemoryGrnn, MEMORY_DIM, N_FILTERS};
+use super::net::{FitError, Grnn};
+
+/// The paper's spread sigma of the static hose GRNN (z-score units; docs/model.md
+/// section 9).
+pub const PAPER_SIGMA: f64 = 0.1;
+
+/// Newton stops when the step is below this, Pa/s.
+pub const NEWTON_STEP_TOL_PAPS: f64 = 1e-3;
+/// Newton iteration limit.
+pub const NEWTON_MAX_ITER: u32 = 30;
+
+/// Filter time constants of the shipped memory hose, s (chosen by
+/// [`crate::studies::grnn::memory::select`] on all three shipped dynamic runs; a test checks
+/// the choice).
+pub const SHIPPED_MEMORY_TAUS_S: [f64; N_FILTERS] = [0.01, 0.3];
+/// Spread of the shipped memory hose (chosen with the time constants).
+pub const SHIPPED_MEMORY_SIGMA: f64 = 0.1;
+/// Consecutive dynamic samples closer than this (z units) are merged into one
+/// weighted sample in the shipped memory hose ([`Grnn::fit_merged`]): 28 000
+/// samples become about 9 000; on a held-out run the predictions move by less
+/// than 0.2 % of the output range and the scores not at all (test
+/// `grnn_memory.rs`).
+pub const SHIPPED_MEMORY_MERGE_Z: f64 = 0.05;
+/// Relative truncation bound of the memory hose's evaluator.
+pub const MEMORY_TRUNC_EPS: f64 = 1e-3;
+
+/// Which GRNN a hose uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GrnnHoseKind {
+    /// Static map g(P, dP/dt) (the paper's model).
+    Static,
+    /// Memory GRNN g(P, dP/dt, P - lowpass(P, tau_1), P - lowpass(P, tau_2)).
+    Memory,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Evaluator {
+    Table(FastGrnn),
+    Trunc {
+        trunc: Truncated,
+        mean: [f64; MEMORY_DIM],
+        inv_std: [f64; MEMORY_DIM],
+    },
+}
+
+/// A GRNN hose wall model ready for the integrator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GrnnHose {
+    kind: GrnnHoseKind,
+    eval: Evaluator,
+    taus_s: [f64; N_FILTERS],
+    sigma: f64,
+    n_samples: usize,
+    g_min: f64,
+    g_max: f64,
+    bound: f64,
+    description: String,
+}
+
+/// Result of one implicit solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solve {
+    /// dP/dt, Pa/s.
+    pub dp_paps: f64,
+    /// Newton/bisection iterations used (each one GRNN evaluation).
+    pub iterations: u32,
+}
+
+impl GrnnHose {
+    /// A static hose from a two-input network on (P MPa, dP/dt MPa/s) -> mm^3/s.
+    pub fn from_static(net: &Grnn, description: impl Into<String>) -> Result<Self, FitError> {
+        if net.dim() != 2 {
+            return Err(FitError::Shape(
+                "a static hose needs inputs (P, dP/dt)".into(),
+            ));
+        }
+        let fast = FastGrnn::new(net);
+        let (g_min, g_max) = net.output_range();
+        Ok(Self {
+            kind: GrnnHoseKind::Static,
+            bound: fast.error_bound(),
+            eval: Evaluator::Table(fast),
+            taus_s: [0.0; N_FILTERS],
+            sigma: net.sigma(),
+            n_samples: net.len(),
+            g_min,
+            g_max,
+            description: description.into(),
+        })
+    }
+
+    /// A memory hose from a memory GRNN.
+    pub fn from_memory(m: &MemoryGrnn, description: impl Into<String>) -> Result<Self, FitError> {
+        if m.net.dim() != MEMORY_DIM {
+            return Err(FitError::Shape(
+                "a memory hose needs the memory inputs".into(),
+            ));
+        }
+        if m.taus_s.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
+            return Err(FitError::BadParameter(
+                "filter time constants must be positive".into(),
+            ));
+        }
+        let trunc = Truncated::new(&m.net, MEMORY_TRUNC_EPS);
+        let sc = m.net.scaler();
+        let (g_min, g_max) = m.net.output_range();
+        Ok(Self {
+            kind: GrnnHoseKind::Memory,
+            bound: trunc.error_bound(),
+            eval: Evaluator::Trunc {
+                trunc,
+                mean: core::array::from_fn(|k| sc.mean[k]),
+                inv_std: core::array::from_fn(|k| 1.0 / sc.std[k]),
+            },
+            taus_s: m.taus_s,
+            sigma: m.net.sigma(),
+            n_samples: m.net.len(),
+            g_min,
+            g_max,
+            description: description.into(),
+        })
+    }
+
+    /// The plant's default static hose: the GRNN on all 2520 shipped
+    /// quasi-static samples at the paper's sigma = 0.1 (docs/model.md section 9).
+    /// Built once per process (about 0.4 s), then shared.
+    pub fn shipped_static() -> Arc<Self> {
+        static CELL: OnceLock<Arc<GrnnHose>> = OnceLock::new();
+        CELL.get_or_init(|| {
+            let d = QuasiStaticData::shipped();
+            let (x, y) = d.xy(&(0..d.samples.len()).collect::<Vec<_>>());
+            let net = Grnn::fit2(&x, &y, PAPER_SIGMA).expect("shipped data fit");
+            Arc::new(
+                Self::from_static(&net, "static GRNN, shipped quasi-static data, sigma 0.1")
+                    .expect("two inputs"),
+            )
+        })
+        .clone()
+    }
+
+    /// The plant's default memory hose: the memory GRNN on all three shipped
+    /// dynamic runs (all samples, near-duplicates merged, see
+    /// [`SHIPPED_MEMORY_MERGE_Z`]) with [`SHIPPED_MEMORY_TAUS_S`] and
+    /// [`SHIPPED_MEMORY_SIGMA`]. Built once per process, then shared.
+    pub fn shipped_memory() -> Arc<Self> {
+        static CELL: OnceLock<Arc<GrnnHose>> = OnceLock::new();
+        CELL.get_or_init(|| {
+            let d = DynamicData::shipped();
+            let runs: Vec<_> = d.runs.iter().collect();
+            let m = MemoryGrnn::fit_merged(
+                &runs,
+                SHIPPED_MEMORY_TAUS_S,
+                SHIPPED_MEMORY_SIGMA,
+                1,
+                SHIPPED_MEMORY_MERGE_Z,
+            )
+            .expect("shipped data fit");
+            Arc::new(
+                Self::from_memory(&m, "memory GRNN, shipped dynamic data").expect("memory inputs"),
+            )
+        })
+        .clone()
+    }
+
+    /// Static or memory.
+    pub fn kind(&self) -> GrnnHoseKind {
+        self.kind
+    }
+
+    /// Filter time constants of a memory hose, s (zeros for a static hose).
+    pub fn taus_s(&self) -> [f64; N_FILTERS] {
+        self.taus_s
+    }
+
+    /// Spread sigma of the network.
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// Number of training samples.
+    pub fn n_samples(&self) -> usize {
+        self.n_samples
+    }
+
+    /// Extreme training outputs (g_min, g_max), mm^3/s.
+    pub fn output_range_mm3ps(&self) -> (f64, f64) {
+        (self.g_min, self.g_max)
+    }
+
+    /// Bound on |evaluated - direct GRNN sum| of the wall rate, mm^3/s.
+    pub fn error_bound_mm3ps(&self) -> f64 {
+        self.bound
+    }
+
+    /// What the hose was fitted on.
+    pub fn description(&self) -> &str {
+        &self.description
+    }
+
+    /// Wall rate g [mm^3/s] and its slope dg/d(dP/dt) [mm^3/s per MPa/s] at
+    /// pressure `p_mpa`, rate `dpdt_mpa_s` and (memory hose) the filter
+    /// deviations `mem_mpa` = P - lowpass(P, tau_k) (ignored by a static hose).
+    #[inline]
+    pub fn wall_rate(&self, p_mpa: f64, dpdt_mpa_s: f64, mem_mpa: [f64; N_FILTERS]) -> (f64, f64) {
+        match &self.eval {
+            Evaluator::Table(f) => {
+                let (g, grad) = f.eval([p_mpa, dpdt_mpa_s]);
+                (g, grad[1])
+            }
+            Evaluator::Trunc {
+                trunc,
+                mean,
+                inv_std,
+            } => {
+                let x = [p_mpa, dpdt_mpa_s, mem_mpa[0], mem_mpa[1]];
+                let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| (x[k] - mean[k]) * inv_std[k]);
+                let e = trunc.eval_z(&u, false);
+                (e.y, e.grad[1] * inv_std[1])
+            }
+        }
+    }
+
+    /// Solve a dP + 1e-9 g(1e-6 P, 1e-6 dP, mem) = Q for dP [Pa/s] (module
+    /// documentation), with a = V/beta_e [m^3/Pa], Q [m^3/s], starting at `warm_paps`.
+    pub fn solve_dp_paps(
+        &self,
+        p_pa: f64,
+        mem_mpa: [f64; N_FILTERS],
+        q_m3ps: f64,
+        a_m3ppa: f64,
+        warm_paps: f64,
+    ) -> Solve {
+        let p_mpa = p_pa * 1e-6;
+        let mut lo = (q_m3ps - 1e-9 * self.g_max) / a_m3ppa;
+        let mut hi = (q_m3ps - 1e-9 * self.g_min) / a_m3ppa;
+        let mut x = if warm_paps.is_finite() {
+            warm_paps.clamp(lo, hi)
+        } else {
+            0.5 * (lo + hi)
+        };
+        for it in 1..=NEWTON_MAX_ITER {
+            let (g, slope) = self.wall_rate(p_mpa, x * 1e-6, mem_mpa);
+            let f = a_m3ppa * x + 1e-9 * g - q_m3ps;
+            if f == 0.0 {
+                return Solve {
+                    dp_paps: x,
+                    iterations: it,
+                };
+            }
+            if f > 0.0 {
+                hi = x;
+            } else {
+                lo = x;
+            }
+            let fp = a_m3ppa + 1e-15 * slope;
+            let newton = x - f / fp;
+            let next = if fp > 0.0 && newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            let step = (next - x).abs();
+            x = next;
+            if step < NEWTON_STEP_TOL_PAPS {
+                return Solve {
+                    dp_paps: x,
+                    iterations: it,
+                };
+            }
+        }
+        Solve {
+            dp_paps: x,
+            iterations: NEWTON_MAX_ITER,
+        }
+    }
+}

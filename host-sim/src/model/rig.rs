@@ -1,0 +1,536 @@
+//! A rig: the plant with unmodelled effects switched on ([`crate::model::effects`]).
+//!
+//! The effects enter the plant's equations (docs/model.md section 4) at these places:
+//!
+//! * `leakage`: Q1 -= Ql, Q2 += Ql with Ql = G (P1 - P2);
+//! * `friction`: the Stribeck force is added to the actuating piston's forces;
+//! * `backlash`: the power piston (position xp, an extra state) sits behind
+//!   the motor (the encoder's Xi) by the play's flank the hydraulic force
+//!   pushes it against plus the screw's deflection under that force (a
+//!   massless piston: its velocity solves the coupling exactly); the line
+//!   volumes and flows use xp and its velocity;
+//! * `air`: the oil compressibility V/beta_e of each line becomes V/beta_eff(P);
+//! * `motor_limit`: the servo's speed target is capped, and its force (the
+//!   speed loop's demand on the reflected mass plus the hydraulic force on the
+//!   power piston) is clamped;
+//! * `hose_hysteresis`: a play operator on each line pressure (extra states h1,
+//!   h2) adds its compliance to the line's capacitance while engaged, and
+//!   holds a share of the hose wall's compliance while not;
+//! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
+//!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0);
+//! * `sensor_delay` acts on the readings, not here (see [`crate::model::sensors`]).
+//!
+//! With no effect active [`Rig::step`] is [`Plant::step`], bit for bit.
+//! `air` and `hose_hysteresis` change the explicit pressure equation and are
+//! defined for the `nonlinear`, `linear` and `rigid` hoses only.
+
+use crate::model::effects::{self, EffectError, Effects, T_AMBIENT_K};
+use crate::model::plant::{HoseModel, Plant, PressureRates, State, N_STATES};
+
+/// Number of extra states the effects carry.
+pub const N_EXT: usize = 4;
+
+/// Extra states of the effects (unused ones stay at their initial value).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Ext {
+    /// Power piston position behind the play (`backlash`), m.
+    pub xp_m: f64,
+    /// Hysteretic pressures of the hose walls (`hose_hysteresis`), within
+    /// +-yield_pa, Pa.
+    pub h_pa: [f64; 2],
+    /// Accumulator gas temperature (`accumulator_thermal`), K.
+    pub t_gas_k: f64,
+}
+
+impl Ext {
+    fn as_array(&self) -> [f64; N_EXT] {
+        [self.xp_m, self.h_pa[0], self.h_pa[1], self.t_gas_k]
+    }
+
+    fn from_array(a: [f64; N_EXT]) -> Self {
+        Self {
+            xp_m: a[0],
+            h_pa: [a[1], a[2]],
+            t_gas_k: a[3],
+        }
+    }
+}
+
+/// The state of a rig: the plant's state and the effects' extra states.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RigState {
+    /// The plant state (Xi is the motor / encoder position).
+    pub x: State,
+    /// The effects' states.
+    pub ext: Ext,
+}
+
+impl RigState {
+    /// True if every entry is finite.
+    pub fn is_finite(&self) -> bool {
+        self.x.is_finite() && self.ext.as_array().iter().all(|v| v.is_finite())
+    }
+}
+
+/// The plant with effects.
+#[derive(Clone, Debug)]
+pub struct Rig {
+    plant: Plant,
+    effects: Effects,
+    /// No effect acts on the plant's equations (none, or only `sensor_delay`):
+    /// [`Rig::step`] is [`Plant::step`]. Decided once, not per step.
+    plant_only: bool,
+}
+
+/// Why effects cannot be combined with a plant.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RigError {
+    /// An effect's parameters are out of range.
+    #[error(transparent)]
+    Effects(#[from] EffectError),
+    /// `air` or `hose_hysteresis` on a GRNN hose (named).
+    #[error(
+        "effects air and hose_hysteresis need an explicit hose model (nonlinear, linear or rigid), not {0}"
+    )]
+    ImplicitHose(&'static str),
+}
+
+impl Rig {
+    /// A rig from a plant and effects (validated).
+    pub fn new(plant: Plant, effects: Effects) -> Result<Self, RigError> {
+        effects.validate()?;
+        let explicit = matches!(
+            plant.hose_model(),
+            HoseModel::Nonlinear | HoseModel::Linear | HoseModel::Rigid
+        );
+        if !explicit && (effects.air.is_some() || effects.hose_hysteresis.is_some()) {
+            return Err(RigError::ImplicitHose(plant.hose_model().name()));
+        }
+        let plant_only = Effects {
+            sensor_delay: None,
+            ..effects
+        }
+        .is_none();
+        Ok(Self {
+            plant,
+            effects,
+            plant_only,
+        })
+    }
+
+    /// The nominal plant.
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// The effects.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
+    }
+
+    /// Rest state (docs/model.md 4.1) with the effects' states at rest.
+    pub fn initial_state(&self, ft0_n: f64) -> RigState {
+        self.rest_state(ft0_n, 0.0, 0.0)
+    }
+
+    /// Rest state under the load `ft0_n` with the motor (encoder) at `xi_m`
+    /// and the actuating piston at `xo_m`; behind a backlash the power piston
+    /// rests on the flank the hydraulic force holds it against.
+    pub fn rest_state(&self, ft0_n: f64, xi_m: f64, xo_m: f64) -> RigState {
+        let mut x = self.plant.initial_state(ft0_n);
+        x.xi_m = xi_m;
+        x.xo_m = xo_m;
+        let xp_m = match &self.effects.backlash {
+            Some(b) => xi_m - effects::backlash_offset_m(b, self.piston_force_n(&x)),
+            None => xi_m,
+        };
+        RigState {
+            x,
+            ext: Ext {
+                xp_m,
+                h_pa: [0.0, 0.0],
+                t_gas_k: T_AMBIENT_K,
+            },
+        }
+    }
+
+    /// Factor (at most 1) on the largest stable plant step: the fastest mode
+    /// (the actuating piston against the lines' hydraulic stiffness) scales
+    /// with the inverse of the line capacitance, which `hose_hysteresis`
+    /// lowers by its stuck share of the wall's part. Taken where that matters
+    /// most: zero pressure (the wall at its softest) and the smallest oil volume.
+    pub fn step_scale(&self) -> f64 {
+        let Some(h) = &self.effects.hose_hysteresis else {
+            return 1.0;
+        };
+        let p = self.plant.params();
+        let (v_min, _) = self.plant.line_volumes(p.x_max_m, p.x_min_m);
+        let (c_oil, c_wall) = self.capacitance(0.0, v_min);
+        ((c_oil + (1.0 - h.stuck_share) * c_wall) / (c_oil + c_wall)).clamp(0.01, 1.0)
+    }
+
+    /// Hydraulic force on the power piston, positive opposing extension, N.
+    fn piston_force_n(&self, x: &State) -> f64 {
+        self.plant.piston_force_n(x.p1_pa, x.p2_pa)
+    }
+
+    /// Line capacitance of the explicit hose models, m^3/Pa: the oil's
+    /// V/beta and the hose wall's Ce(P).
+    fn capacitance(&self, p_pa: f64, v_m3: f64) -> (f64, f64) {
+        let p = self.plant.params();
+        let h = &p.hose;
+        let ce = match self.plant.hose_model() {
+            HoseModel::Nonlinear => h.ce0_m3pp * h.stiffening(p_pa),
+            HoseModel::Linear => h.ce0_m3pp * h.stiffening(p.p_nom_pa),
+            _ => 0.0,
+        };
+        (v_m3 / p.beta_e_pa, ce)
+    }
+
+    /// Right-hand side of the plant and of the effects' states.
+    pub fn derivative(
+        &self,
+        s: &RigState,
+        v_cmd_mps: f64,
+        ft_n: f64,
+    ) -> ([f64; N_STATES], [f64; N_EXT]) {
+        let e = &self.effects;
+        let p = self.plant.params();
+        let mut x = s.x;
+        // Servo (motor side): target, torque-speed cut, acceleration limit.
+        let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
+        let f_piston = self.piston_force_n(&x);
+        let dvi = effects::servo_accel(e.motor_limit.as_ref(), vc, x.vi_mps, p.tau_m_s, f_piston);
+        let mut fo = self.plant.forces_n(&x, ft_n);
+        if let Some(f) = &e.friction {
+            fo += effects::friction_force_n(f, x.vo_mps);
+        }
+        let motor = (x.xi_m, x.vi_mps);
+        // The lines see the power piston: behind the backlash at ext.xp_m.
+        if e.backlash.is_some() {
+            x.xi_m = s.ext.xp_m;
+        }
+        // Accumulator flow (with the gas temperature) and leakage depend on
+        // the state only; the piston's velocity enters through Q1 and Q2.
+        let qa_nom = self.plant.flows(&x).qa_m3ps;
+        let mut qa = qa_nom;
+        let mut dt_gas = 0.0;
+        if let Some(th) = &e.accumulator_thermal {
+            // Gas law with temperature: P_abs = P0_abs (V0 / Vg) (T / T0).
+            let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
+            let pacc =
+                p_abs0 * (p.v_gas0_m3 / x.vg_m3) * (s.ext.t_gas_k / T_AMBIENT_K) - p.p_atm_pa;
+            qa = p.g_acc_m3pspa * (pacc - x.p2_pa);
+            // Adiabatic compression heats the gas (dVg = qa), exchange relaxes it.
+            dt_gas = -(p.n_poly - 1.0) * s.ext.t_gas_k * qa / x.vg_m3
+                + (T_AMBIENT_K - s.ext.t_gas_k) / th.tau_s;
+        }
+        let ql = e
+            .leakage
+            .as_ref()
+            .map_or(0.0, |l| effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa));
+        let lines = |vp: f64| self.line_rates(s, &x, vp, qa - qa_nom, ql);
+        // Behind a backlash the piston sits where the coupling carries the
+        // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt
+        // is affine in vp (through Q1, Q2): solved exactly from two evaluations.
+        let (vp, (r, dh)) = match &e.backlash {
+            Some(b) => {
+                let g1 = effects::backlash_compliance_mpn(b, f_piston);
+                let df = |r: &PressureRates| p.ap1_m2 * r.dp1_paps - p.ap2_m2 * r.dp2_paps;
+                let dv = 1e-3;
+                let f0 = df(&lines(motor.1).0);
+                let slope = ((df(&lines(motor.1 + dv).0) - f0) / dv).max(0.0);
+                let vp = motor.1 - g1 * f0 / (1.0 + g1 * slope);
+                (vp, lines(vp))
+            }
+            None => (motor.1, lines(motor.1)),
+        };
+        let d = [
+            motor.1,
+            dvi,
+            x.vo_mps,
+            fo / p.m_kg,
+            r.dp1_paps,
+            r.dp2_paps,
+            r.dvf1_m3ps,
+            r.dvs1_m3ps,
+            r.dvf2_m3ps,
+            r.dvs2_m3ps,
+            qa,
+        ];
+        (d, [vp, dh[0], dh[1], dt_gas])
+    }
+
+    /// Pressure and hose-volume rates with the power piston (position in
+    /// `x.xi_m`) moving at `vp`, the accumulator flow changed by `dqa` and the
+    /// leakage `ql` from line 1 to line 2; and the rates of the hysteretic
+    /// pressures.
+    fn line_rates(
+        &self,
+        s: &RigState,
+        x: &State,
+        vp: f64,
+        dqa: f64,
+        ql: f64,
+    ) -> (PressureRates, [f64; 2]) {
+        let e = &self.effects;
+        let p = self.plant.params();
+        let mut xv = *x;
+        xv.vi_mps = vp;
+        let flows = self.plant.flows(&xv);
+        let q1 = flows.q1_m3ps - ql;
+        let q2 = flows.q2_m3ps + dqa + ql;
+        let mut r = self.plant.pressure_rates(&xv, q1, q2);
+        let mut dh = [0.0; 2];
+        if e.air.is_none() && e.hose_hysteresis.is_none() {
+            return (r, dh);
+        }
+        let (v1, v2) = self.plant.line_volumes(xv.xi_m, xv.xo_m);
+        for (j, (pj, vj)) in [(xv.p1_pa, v1), (xv.p2_pa, v2)].into_iter().enumerate() {
+            let (c_oil, c_wall) = self.capacitance(pj, vj);
+            let c_nom = c_oil + c_wall;
+            let mut c = c_nom;
+            if let Some(a) = &e.air {
+                c += vj
+                    * (effects::compressibility_ppa(a, p.beta_e_pa, pj, p.p_atm_pa)
+                        - 1.0 / p.beta_e_pa);
+            }
+            let dp_nom = if j == 0 { r.dp1_paps } else { r.dp2_paps };
+            let mut dp = dp_nom * c_nom / c;
+            if let Some(h) = &e.hose_hysteresis {
+                let z = s.ext.h_pa[j];
+                let engaged = effects::hysteresis_engagement(h, z, dp);
+                c += engaged * h.c_m3pp - (1.0 - engaged) * h.stuck_share * c_wall;
+                dp = dp_nom * c_nom / c;
+                dh[j] = effects::hysteresis_rate(h, z, dp);
+            }
+            if j == 0 {
+                r.dp1_paps = dp;
+            } else {
+                r.dp2_paps = dp;
+            }
+        }
+        (r, dh)
+    }
+
+    /// One RK4 step with inputs held (docs/model.md 4.2), software limit first.
+    pub fn step(&self, s: &mut RigState, v_cmd_mps: f64, ft_n: f64, dt_s: f64) {
+        if self.plant_only {
+            self.plant.step(&mut s.x, v_cmd_mps, ft_n, dt_s);
+            return;
+        }
+        let v = self.plant.software_limited_v_cmd(s.x.xi_m, v_cmd_mps);
+        let (x0, e0) = (s.x.as_array(), s.ext.as_array());
+        let at = |dx: &[f64; N_STATES], de: &[f64; N_EXT], h: f64| RigState {
+            x: State::from_array(std::array::from_fn(|i| x0[i] + h * dx[i])),
+            ext: Ext::from_array(std::array::from_fn(|i| e0[i] + h * de[i])),
+        };
+        let (k1, l1) = self.derivative(s, v, ft_n);
+        let (k2, l2) = self.derivative(&at(&k1, &l1, 0.5 * dt_s), v, ft_n);
+        let (k3, l3) = self.derivative(&at(&k2, &l2, 0.5 * dt_s), v, ft_n);
+        let (k4, l4) = self.derivative(&at(&k3, &l3, dt_s), v, ft_n);
+        let sixth = dt_s / 6.0;
+        s.x = State::from_array(std::array::from_fn(|i| {
+            x0[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        }));
+        s.ext = Ext::from_array(std::array::from_fn(|i| {
+            e0[i] + sixth * (l1[i] + 2.0 * l2[i] + 2.0 * l3[i] + l4[i])
+        }));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::effects::{self, EffectKind};
+
+    fn rig(k: Option<(EffectKind, &[f64])>) -> Rig {
+        let mut e = Effects::NONE;
+        if let Some((k, v)) = k {
+            e.set(k, Some(v));
+        }
+        Rig::new(Plant::nominal(), e).unwrap()
+    }
+
+    /// Move out at 20 mm/s for 0.5 s, hold with 800 N from 1 s; states at 3 s.
+    fn run(r: &Rig) -> Vec<RigState> {
+        let mut s = r.initial_state(0.0);
+        let mut out = Vec::new();
+        for k in 0..30_000 {
+            let t = k as f64 * 1e-4;
+            let v = if t < 0.5 { 0.02 } else { 0.0 };
+            let ft = if t >= 1.0 { 800.0 } else { 0.0 };
+            r.step(&mut s, v, ft, 1e-4);
+            if k % 1000 == 999 {
+                out.push(s);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn no_effect_is_the_nominal_plant_bit_for_bit() {
+        let r = rig(None);
+        let p = Plant::nominal();
+        let mut x = p.initial_state(0.0);
+        let mut s = r.initial_state(0.0);
+        for k in 0..5000 {
+            let v = if k < 2000 { 0.03 } else { -0.01 };
+            p.step(&mut x, v, 300.0, 1e-4);
+            r.step(&mut s, v, 300.0, 1e-4);
+        }
+        assert_eq!(s.x, x);
+        // The derivative with effects off equals the plant's, up to the order
+        // of the additions (the rig adds the same terms).
+        let (d, _) = r.derivative(&s, 0.05, 300.0);
+        let dp = p.derivative(&x, 0.05, 300.0);
+        for i in 0..N_STATES {
+            assert!(
+                (d[i] - dp[i]).abs() <= 1e-12 * dp[i].abs().max(1e-9),
+                "{i}: {} vs {}",
+                d[i],
+                dp[i]
+            );
+        }
+    }
+
+    #[test]
+    fn leakage_lets_the_load_push_the_piston_back() {
+        let nominal = run(&rig(None));
+        let leaky = run(&rig(Some((EffectKind::Leakage, &[1e-12]))));
+        // Under 800 N (1-3 s) oil leaks from line 1: Xo sinks against Xi.
+        // States every 0.1 s: index 12 is t = 1.3 s, index 29 is t = 3.0 s.
+        let sag = |s: &[RigState]| s[29].x.xo_m - s[12].x.xo_m;
+        assert!(
+            sag(&leaky) < sag(&nominal) - 1e-4,
+            "{} vs {}",
+            sag(&leaky),
+            sag(&nominal)
+        );
+    }
+
+    #[test]
+    fn backlash_flank_follows_the_piston_force() {
+        let r = rig(Some((EffectKind::Backlash, &[200e-6, 1e7])));
+        let b = r.effects().backlash.unwrap();
+        // At rest the accumulator's pressure on the full bore pushes the
+        // piston out: it rests ahead of the motor, on the far flank.
+        let mut s = r.initial_state(0.0);
+        let f0 = r.piston_force_n(&s.x);
+        assert!(f0 < -100.0, "{f0}");
+        let lead = s.ext.xp_m - s.x.xi_m;
+        assert!((lead - (100e-6 - f0 / 1e7)).abs() < 1e-7, "{lead:e}");
+        // At rest the state does not move.
+        let (_, de) = r.derivative(&s, 0.0, 0.0);
+        assert!(de[0].abs() < 1e-12, "{}", de[0]);
+        // 800 N on the load turns the force over: the piston crosses the play
+        // and lags the motor by the half play plus the deflection.
+        for _ in 0..5000 {
+            r.step(&mut s, 0.0, 800.0, 1e-4);
+        }
+        let f = r.piston_force_n(&s.x);
+        assert!(f > 100.0, "{f}");
+        let lag = s.x.xi_m - s.ext.xp_m;
+        let want = effects::backlash_offset_m(&b, f);
+        assert!(
+            want > 100e-6 && (lag - want).abs() < 1e-6,
+            "{lag:e} vs {want:e}"
+        );
+    }
+
+    #[test]
+    fn motor_limit_slows_the_servo_under_load() {
+        // 1000 N drive force against about 700 N of hydraulic force.
+        let r = rig(Some((EffectKind::MotorLimit, &[1000.0, 500.0, 0.1])));
+        let mut s = r.initial_state(800.0);
+        for _ in 0..2000 {
+            r.step(&mut s, 0.05, 800.0, 1e-4);
+        }
+        let free = rig(None);
+        let mut f = free.initial_state(800.0);
+        for _ in 0..2000 {
+            free.step(&mut f, 0.05, 800.0, 1e-4);
+        }
+        assert!(s.x.xi_m < 0.8 * f.x.xi_m, "{} vs {}", s.x.xi_m, f.x.xi_m);
+        // The speed cap alone.
+        let capped = rig(Some((EffectKind::MotorLimit, &[1e5, 1e3, 0.02])));
+        let mut c = capped.initial_state(0.0);
+        for _ in 0..3000 {
+            capped.step(&mut c, 0.05, 0.0, 1e-4);
+        }
+        assert!((c.x.vi_mps - 0.02).abs() < 1e-6, "{}", c.x.vi_mps);
+    }
+
+    #[test]
+    fn air_and_friction_and_hysteresis_and_thermal_change_the_response() {
+        let base = run(&rig(None));
+        for (k, v) in [
+            (EffectKind::Air, &[0.01][..]),
+            (EffectKind::Friction, &[60.0, 90.0, 2e-3][..]),
+            (EffectKind::HoseHysteresis, &[1e-12, 0.0, 1e5][..]),
+            (EffectKind::HoseHysteresis, &[0.0, 1.0, 3e5][..]),
+            (EffectKind::AccumulatorThermal, &[2.0][..]),
+        ] {
+            let with = run(&rig(Some((k, v))));
+            let diff = with
+                .iter()
+                .zip(&base)
+                .map(|(a, b)| {
+                    (a.x.xo_m - b.x.xo_m).abs() / 1e-6 + (a.x.p2_pa - b.x.p2_pa).abs() / 1e3
+                })
+                .fold(0.0, f64::max);
+            assert!(diff > 1.0, "{}: {diff}", k.name());
+            assert!(with.iter().all(|s| s.is_finite()), "{}", k.name());
+        }
+    }
+
+    #[test]
+    fn step_scale_keeps_a_stiffened_line_stable() {
+        let r = rig(Some((EffectKind::HoseHysteresis, &[0.0, 1.0, 3e5])));
+        let scale = r.step_scale();
+        assert!(scale < 0.5 && scale > 0.05, "{scale}");
+        // A 1 s load cycle at the replay's step (5e-4 s) times the scale, and
+        // at a 20 times finer step: the same trajectory.
+        let sim = |n: usize| {
+            let h = 1.0 / n as f64;
+            let mut s = r.initial_state(0.0);
+            for k in 0..n {
+                let t = k as f64 * h;
+                let ft = 400.0 + 300.0 * (2.0 * std::f64::consts::PI * 2.0 * t).sin();
+                let v = 0.03 * (2.0 * std::f64::consts::PI * t).cos();
+                r.step(&mut s, v, ft, h);
+            }
+            s
+        };
+        let n = (1.0 / (5e-4 * scale)).ceil() as usize;
+        let coarse = sim(n);
+        let fine = sim(20 * n);
+        assert!(coarse.is_finite());
+        // Within a fifth of the sensor noise (the engagement switches with the
+        // sign of dP/dt, and the inputs are held over each step).
+        assert!(
+            (coarse.x.xo_m - fine.x.xo_m).abs() < 2e-6,
+            "{coarse:?} {fine:?}"
+        );
+        assert!((coarse.x.p1_pa - fine.x.p1_pa).abs() < 1e3);
+        // Without the scale the same step diverges or is far off.
+        let unscaled = sim(2000);
+        assert!(
+            !unscaled.is_finite() || (unscaled.x.p1_pa - fine.x.p1_pa).abs() > 1e3,
+            "{unscaled:?}"
+        );
+    }
+
+    #[test]
+    fn explicit_hose_needed_for_air() {
+        let mut e = Effects::NONE;
+        e.set(EffectKind::Air, Some(&[0.01]));
+        assert!(Rig::new(
+            Plant::new(dca_core::params::PlantParams::NOMINAL, HoseModel::Rigid),
+            e
+        )
+        .is_ok());
+        e.set(EffectKind::Leakage, Some(&[-1.0]));
+        assert!(Rig::new(Plant::nominal(), e).is_err());
+    }
+}

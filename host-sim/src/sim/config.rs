@@ -1,0 +1,949 @@
+//! TOML files: controller configurations and custom scenarios.
+//!
+//! A controller configuration starts from a preset and sets any controller
+//! parameter of the board's settings table (`dca_app::settings::PARAMS`, the
+//! paths of the console's `get`/`set`: table `[eso]`, key `beta1` is the path
+//! `eso.beta1`), with the same ranges. Unknown keys and values out of range
+//! are errors, so a typo never passes silently:
+//!
+//! ```toml
+//! preset = "paper"          # or "fast"
+//! controller = "mpc-eso"    # optional: mpc-eso | mpc | pid | fuzzy-pid
+//! [mpc_eso]                 # also [mpc]
+//! np = 8
+//! nc = 3
+//! ts_s = 0.1
+//! rw = 33.0
+//! [eso]
+//! beta1 = 30.0              # beta2, beta3, b0, h_s, alpha1, alpha2, delta_m
+//! [td]
+//! r_mps2 = 8.0              # h0_s
+//! [pid]
+//! kp = 2.7                  # ki, kd, ts_s
+//! [fuzzy]
+//! e_span_m = 0.02           # ec_span_mps, dkp_max, dki_max, dkd_max, kp, ki, kd, ts_s
+//! [limits]
+//! v_max_mps = 0.1           # x_min_m, x_max_m, xo_plausible_m
+//! ```
+//!
+//! A scenario file gives the duration, the reference (or an open-loop speed
+//! command) and the load as signals, and optionally the controller, the plant
+//! and the sensors:
+//!
+//! ```toml
+//! name = "two-steps"
+//! duration_s = 8.0
+//! [reference]                       # or [open_loop] (v_cmd, m/s)
+//! type = "steps"                    # constant | steps | sine | cosine | ramp | piecewise
+//! times_s = [4.0]
+//! values = [0.03, 0.06]
+//! [load]
+//! type = "sine"
+//! bias = 400.0
+//! amplitude = 200.0
+//! frequency_hz = 0.5
+//! [controller]                      # the configuration format above
+//! controller = "mpc-eso"
+//! preset = "fast"
+//! [plant]
+//! hose = "nonlinear"                # linear | rigid | ...
+//! sensors = "realistic"
+//! seed = 3
+//! [plant.effects.leakage]           # any effect of docs/model.md section 12
+//! g_m3pspa = 1e-13
+//! ```
+//!
+//! Errors name the file, the line and the field.
+
+use std::path::Path;
+
+use dca_app::settings::{self, Param, ParamKind};
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::model::scenario::{Command, Piecewise, PiecewiseError, Scenario, Signal};
+
+/// An error in a TOML file: file, line, field, message.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileError {
+    /// The file.
+    pub file: String,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// The field (dotted path), when known.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl std::fmt::Display for FileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        if let Some(k) = &self.field {
+            write!(f, ": field '{k}'")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for FileError {}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].matches('\n').count() + 1
+}
+
+/// Parse TOML into `T`, mapping parse and type errors to file and line.
+fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> Result<T, FileError> {
+    toml::from_str(text).map_err(|e: toml::de::Error| {
+        let line = e.span().map(|s| line_of(text, s.start));
+        // The message names the key for unknown or mistyped fields. The
+        // parser gives no message when the text ends where a value is due.
+        let message = match e.message().trim() {
+            "" if e.span().is_some_and(|s| s.start >= text.trim_end().len()) => {
+                "unexpected end of file: a value is missing".to_string()
+            }
+            "" => "invalid TOML".to_string(),
+            m => m.to_string(),
+        };
+        let field = message
+            .split('`')
+            .nth(1)
+            .filter(|_| {
+                message.starts_with("unknown field") || message.starts_with("invalid value for")
+            })
+            .map(str::to_string);
+        FileError {
+            file: file.to_string(),
+            line,
+            field,
+            message,
+        }
+    })
+}
+
+fn read(path: &Path) -> Result<String, FileError> {
+    std::fs::read_to_string(path).map_err(|e| FileError {
+        file: path.display().to_string(),
+        line: None,
+        field: None,
+        message: e.to_string(),
+    })
+}
+
+/// A controller configuration file (or the `[controller]` table of a
+/// scenario): a preset, a controller kind and parameters by path.
+///
+/// The tables and keys are those of the board's settings table
+/// ([`dca_app::settings::PARAMS`], the one the console's `get`/`set` use),
+/// restricted to the controller's tables
+/// ([`dca_app::settings::CONTROLLER_TABLES`]): `[eso] beta1 = 30.0` sets the
+/// path `eso.beta1`. Every value is range- and type-checked as it is read, so
+/// that a file accepts exactly what `set eso.beta1 30` accepts on the board;
+/// a new parameter in that table is a new key here, with no other edit.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ConfigFile {
+    /// Base preset: `paper` (default) or `fast`.
+    pub preset: Option<String>,
+    /// Controller kind.
+    pub controller: Option<String>,
+    /// The parameters set, as (path, value as stored), in file order.
+    pub params: Vec<(&'static str, f64)>,
+}
+
+/// Why a controller parameter given by path (in a file or a sweep) was
+/// refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    /// No controller parameter has this path.
+    #[error("'{path}' is not a controller parameter{hint}")]
+    Unknown {
+        /// The path as given.
+        path: String,
+        /// What was expected, or why the path is not one.
+        hint: String,
+    },
+    /// The value is out of range or of the wrong type.
+    #[error("'{path}' = {value}: {reason} (accepted: {min} to {max})")]
+    Value {
+        /// The parameter's path.
+        path: &'static str,
+        /// The value as given.
+        value: f64,
+        /// Why it was refused.
+        reason: &'static str,
+        /// The smallest accepted value.
+        min: f64,
+        /// The largest accepted value.
+        max: f64,
+    },
+}
+
+/// The keys of one controller table, as "`a`, `b`, ...".
+fn keys_of(table: &str) -> String {
+    settings::PARAMS
+        .iter()
+        .filter(|p| p.table() == table)
+        .map(|p| format!("`{}`", p.key()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The controller parameter at `path`.
+pub fn controller_param(path: &str) -> Result<&'static Param, ParamError> {
+    match settings::find(path) {
+        Some(p) if p.is_controller() => Ok(p),
+        Some(_) => Err(ParamError::Unknown {
+            path: path.to_string(),
+            hint: ": it is a setting of the board (calibration, drive, supervisor or HIL)".into(),
+        }),
+        None => {
+            let table = path.split_once('.').map_or(path, |(t, _)| t);
+            let hint = if settings::CONTROLLER_TABLES.contains(&table) {
+                format!("; [{table}] has {}", keys_of(table))
+            } else {
+                format!(
+                    "; the tables are {}",
+                    settings::CONTROLLER_TABLES.join(", ")
+                )
+            };
+            Err(ParamError::Unknown {
+                path: path.to_string(),
+                hint,
+            })
+        }
+    }
+}
+
+/// `v` for the controller parameter `p`, as it is stored.
+pub fn check_value(p: &'static Param, v: f64) -> Result<f64, ParamError> {
+    p.check(v).map_err(|e| ParamError::Value {
+        path: p.name,
+        value: v,
+        reason: e.as_str(),
+        min: p.min.value(),
+        max: p.max.value(),
+    })
+}
+
+/// Set the controller parameter `path` of `cfg` to `v` (checked).
+pub fn set_param(cfg: &mut ControllerConfig, path: &str, v: f64) -> Result<(), ParamError> {
+    let p = controller_param(path)?;
+    let v = check_value(p, v)?;
+    settings::set_controller(cfg, p.name, v).map_err(|e| ParamError::Value {
+        path: p.name,
+        value: v,
+        reason: e.as_str(),
+        min: p.min.value(),
+        max: p.max.value(),
+    })
+}
+
+/// The top-level keys of a configuration file.
+enum FileKey {
+    Preset,
+    Controller,
+    Table(&'static str),
+}
+
+/// Reads a top-level key; an unknown one is an error at the key (its line).
+struct FileKeySeed;
+
+impl<'de> DeserializeSeed<'de> for FileKeySeed {
+    type Value = FileKey;
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<FileKey, D::Error> {
+        d.deserialize_str(self)
+    }
+}
+
+impl Visitor<'_> for FileKeySeed {
+    type Value = FileKey;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a key of a controller configuration")
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<FileKey, E> {
+        match v {
+            "preset" => Ok(FileKey::Preset),
+            "controller" => Ok(FileKey::Controller),
+            _ => match settings::CONTROLLER_TABLES.iter().find(|t| **t == v) {
+                Some(t) => Ok(FileKey::Table(t)),
+                None => Err(E::custom(format!(
+                    "unknown field `{v}`, expected one of `preset`, `controller`, {}",
+                    settings::CONTROLLER_TABLES
+                        .map(|t| format!("`{t}`"))
+                        .join(", ")
+                ))),
+            },
+        }
+    }
+}
+
+/// Reads a key of a parameter table.
+struct ParamKeySeed(&'static str);
+
+impl<'de> DeserializeSeed<'de> for ParamKeySeed {
+    type Value = &'static Param;
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<&'static Param, D::Error> {
+        d.deserialize_str(self)
+    }
+}
+
+impl Visitor<'_> for ParamKeySeed {
+    type Value = &'static Param;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "a key of [{}]", self.0)
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<&'static Param, E> {
+        settings::PARAMS
+            .iter()
+            .find(|p| p.table() == self.0 && p.key() == v)
+            .ok_or_else(|| {
+                E::custom(format!(
+                    "unknown field `{v}`, expected one of {}",
+                    keys_of(self.0)
+                ))
+            })
+    }
+}
+
+/// Reads a parameter's value (a TOML integer or float; a flag may also be a
+/// boolean) and checks it; an error is at the value (its line).
+struct ValueSeed(&'static Param);
+
+impl<'de> DeserializeSeed<'de> for ValueSeed {
+    type Value = f64;
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<f64, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl Visitor<'_> for ValueSeed {
+    type Value = f64;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "a number for `{}`", self.0.name)
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
+        let p = self.0;
+        p.check(v).map_err(|e| {
+            E::custom(format!(
+                "invalid value for `{}`: {v}: {} (accepted: {} to {})",
+                p.name,
+                e.as_str(),
+                p.min.value(),
+                p.max.value()
+            ))
+        })
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
+        self.visit_f64(v as f64)
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
+        self.visit_f64(v as f64)
+    }
+
+    fn visit_bool<E: de::Error>(self, v: bool) -> Result<f64, E> {
+        match self.0.kind {
+            ParamKind::Bool => Ok(if v { 1.0 } else { 0.0 }),
+            _ => Err(E::invalid_type(de::Unexpected::Bool(v), &self)),
+        }
+    }
+}
+
+/// Reads one parameter table into the file's list.
+struct TableSeed<'a> {
+    table: &'static str,
+    out: &'a mut Vec<(&'static str, f64)>,
+}
+
+impl<'de> DeserializeSeed<'de> for TableSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for TableSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "the table [{}]", self.table)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        while let Some(p) = map.next_key_seed(ParamKeySeed(self.table))? {
+            let v = map.next_value_seed(ValueSeed(p))?;
+            self.out.push((p.name, v));
+        }
+        Ok(())
+    }
+}
+
+struct FileVisitor;
+
+impl<'de> Visitor<'de> for FileVisitor {
+    type Value = ConfigFile;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a controller configuration")
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ConfigFile, A::Error> {
+        let mut file = ConfigFile::default();
+        while let Some(key) = map.next_key_seed(FileKeySeed)? {
+            match key {
+                FileKey::Preset => file.preset = Some(map.next_value()?),
+                FileKey::Controller => file.controller = Some(map.next_value()?),
+                FileKey::Table(table) => map.next_value_seed(TableSeed {
+                    table,
+                    out: &mut file.params,
+                })?,
+            }
+        }
+        Ok(file)
+    }
+}
+
+impl<'de> Deserialize<'de> for ConfigFile {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_map(FileVisitor)
+    }
+}
+
+impl ConfigFile {
+    /// Read a configuration file.
+    pub fn read(path: &Path) -> Result<Self, FileError> {
+        Self::parse_str(&read(path)?, &path.display().to_string())
+    }
+
+    /// Parse configuration text; `file` names it in errors.
+    pub fn parse_str(text: &str, file: &str) -> Result<Self, FileError> {
+        parse(text, file)
+    }
+
+    /// The preset named in the file (default `paper`).
+    pub fn preset(&self, file: &str) -> Result<Preset, FileError> {
+        match &self.preset {
+            None => Ok(Preset::Paper),
+            Some(p) => Preset::from_name(p).ok_or_else(|| FileError {
+                file: file.to_string(),
+                line: None,
+                field: Some("preset".into()),
+                message: format!("unknown preset '{p}' (paper or fast)"),
+            }),
+        }
+    }
+
+    /// The controller kind named in the file, if any.
+    pub fn kind(&self, file: &str) -> Result<Option<ControllerKind>, FileError> {
+        match &self.controller {
+            None => Ok(None),
+            Some(k) => ControllerKind::from_name(k)
+                .map(Some)
+                .ok_or_else(|| FileError {
+                    file: file.to_string(),
+                    line: None,
+                    field: Some("controller".into()),
+                    message: format!("unknown controller '{k}' (mpc-eso, mpc, pid or fuzzy-pid)"),
+                }),
+        }
+    }
+
+    /// Apply the parameters to `cfg`, in file order. The TD steps with the
+    /// ESO, so `eso.h_s` also sets the TD's step.
+    pub fn apply(&self, cfg: &mut ControllerConfig) -> Result<(), ParamError> {
+        self.params
+            .iter()
+            .try_for_each(|(path, v)| set_param(cfg, path, *v))
+    }
+
+    /// The full configuration for `kind`: the file's preset with its parameters.
+    pub fn resolve(&self, kind: ControllerKind, file: &str) -> Result<ControllerConfig, FileError> {
+        let mut cfg = ControllerConfig::preset(self.preset(file)?, kind);
+        self.apply(&mut cfg).map_err(|e| FileError {
+            file: file.to_string(),
+            line: None,
+            field: match &e {
+                ParamError::Unknown { path, .. } => Some(path.clone()),
+                ParamError::Value { path, .. } => Some(path.to_string()),
+            },
+            message: e.to_string(),
+        })?;
+        Ok(cfg)
+    }
+}
+
+/// A signal in a scenario file.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SignalSpec {
+    /// A constant.
+    Constant {
+        /// The value.
+        value: f64,
+    },
+    /// Piecewise constant: `values[i]` before `times_s[i]`, the last value after.
+    Steps {
+        /// Switching instants, s, strictly increasing.
+        times_s: Vec<f64>,
+        /// One more value than instants.
+        values: Vec<f64>,
+    },
+    /// `bias + amplitude sin(2 pi f (t - t0))`.
+    Sine {
+        /// Offset.
+        #[serde(default)]
+        bias: f64,
+        /// Amplitude.
+        amplitude: f64,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Phase origin, s.
+        #[serde(default)]
+        t0_s: f64,
+    },
+    /// `bias + amplitude cos(2 pi f (t - t0))`.
+    Cosine {
+        /// Offset.
+        #[serde(default)]
+        bias: f64,
+        /// Amplitude.
+        amplitude: f64,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Phase origin, s.
+        #[serde(default)]
+        t0_s: f64,
+    },
+    /// `start + slope (t - t0)`.
+    Ramp {
+        /// Value at t0.
+        start: f64,
+        /// Slope per second.
+        slope_per_s: f64,
+        /// Time origin, s.
+        #[serde(default)]
+        t0_s: f64,
+    },
+    /// Switching between signals: `pieces[i]` before `thresholds_s[i]`.
+    Piecewise {
+        /// Switching instants, s, strictly increasing.
+        thresholds_s: Vec<f64>,
+        /// One more piece than thresholds.
+        pieces: Vec<SignalSpec>,
+    },
+}
+
+/// Why a signal of a scenario file could not be built (the caller names the
+/// file, the line and the field).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SignalError {
+    /// A parameter is not finite.
+    #[error("{0} must be finite")]
+    NotFinite(&'static str),
+    /// The steps or pieces do not form a piecewise signal.
+    #[error(transparent)]
+    Piecewise(#[from] PiecewiseError),
+}
+
+impl SignalSpec {
+    /// Build the signal; `Err` says what is wrong for the caller to locate.
+    pub fn build(&self) -> Result<Signal, SignalError> {
+        let finite = |name: &'static str, v: f64| {
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(SignalError::NotFinite(name))
+            }
+        };
+        Ok(match self {
+            Self::Constant { value } => Signal::Constant(finite("value", *value)?),
+            Self::Steps { times_s, values } => {
+                Signal::Piecewise(Piecewise::constants(times_s.clone(), values)?)
+            }
+            Self::Sine {
+                bias,
+                amplitude,
+                frequency_hz,
+                t0_s,
+            }
+            | Self::Cosine {
+                bias,
+                amplitude,
+                frequency_hz,
+                t0_s,
+            } => {
+                let (bias, amplitude, t0_s) = (
+                    finite("bias", *bias)?,
+                    finite("amplitude", *amplitude)?,
+                    finite("t0_s", *t0_s)?,
+                );
+                let omega_radps =
+                    2.0 * std::f64::consts::PI * finite("frequency_hz", *frequency_hz)?;
+                if matches!(self, Self::Sine { .. }) {
+                    Signal::Sine {
+                        bias,
+                        amplitude,
+                        omega_radps,
+                        t0_s,
+                    }
+                } else {
+                    Signal::Cosine {
+                        bias,
+                        amplitude,
+                        omega_radps,
+                        t0_s,
+                    }
+                }
+            }
+            Self::Ramp {
+                start,
+                slope_per_s,
+                t0_s,
+            } => Signal::Ramp {
+                start: finite("start", *start)?,
+                slope_per_s: finite("slope_per_s", *slope_per_s)?,
+                t0_s: finite("t0_s", *t0_s)?,
+            },
+            Self::Piecewise {
+                thresholds_s,
+                pieces,
+            } => Signal::Piecewise(Piecewise::new(
+                thresholds_s.clone(),
+                pieces.iter().map(|p| p.build()).collect::<Result<_, _>>()?,
+            )?),
+        })
+    }
+}
+
+/// The `[plant]` table of a scenario file.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlantSection {
+    /// Hose model name.
+    pub hose: Option<String>,
+    /// Sensor mode: ideal or realistic.
+    pub sensors: Option<String>,
+    /// Noise seed.
+    pub seed: Option<u64>,
+    /// Plant step, s.
+    pub dt_s: Option<f64>,
+    /// Unmodelled effects, e.g. `[plant.effects.leakage] g_m3pspa = 1e-13`.
+    pub effects: Option<crate::model::effects::Effects>,
+}
+
+/// A scenario file.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    /// Scenario name (default: the file stem).
+    pub name: Option<String>,
+    /// Duration, s.
+    pub duration_s: Spanned<f64>,
+    /// Position reference (closed loop), m.
+    pub reference: Option<Spanned<SignalSpec>>,
+    /// Open-loop speed command, m/s.
+    pub open_loop: Option<Spanned<SignalSpec>>,
+    /// Load force, N (default 0).
+    pub load: Option<Spanned<SignalSpec>>,
+    /// Controller configuration.
+    pub controller: Option<ConfigFile>,
+    /// Plant and sensors.
+    pub plant: Option<PlantSection>,
+}
+
+/// A scenario read from a file, with the settings it carries.
+#[derive(Clone, Debug)]
+pub struct LoadedScenario {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Its controller table, if any.
+    pub controller: Option<ConfigFile>,
+    /// Its plant table, if any.
+    pub plant: PlantSection,
+}
+
+impl ScenarioFile {
+    /// Read and validate a scenario file.
+    pub fn load(path: &Path) -> Result<LoadedScenario, FileError> {
+        let text = read(path)?;
+        let name = path.display().to_string();
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| "custom".into());
+        Self::load_str(&text, &name, &stem)
+    }
+
+    /// Parse and validate scenario text; `file` names it in errors.
+    pub fn load_str(
+        text: &str,
+        file: &str,
+        default_name: &str,
+    ) -> Result<LoadedScenario, FileError> {
+        let f: ScenarioFile = parse(text, file)?;
+        let at = |span: std::ops::Range<usize>, field: &str, message: String| FileError {
+            file: file.to_string(),
+            line: Some(line_of(text, span.start)),
+            field: Some(field.to_string()),
+            message,
+        };
+        let d = *f.duration_s.get_ref();
+        if !(d.is_finite() && d > 0.0 && d <= 3600.0) {
+            return Err(at(
+                f.duration_s.span(),
+                "duration_s",
+                format!("{d} s: must be in (0, 3600]"),
+            ));
+        }
+        // Finite parameters can still give infinite or NaN values within
+        // the run (an overflowing amplitude, frequency or slope).
+        let build = |s: &Spanned<SignalSpec>, field: &str| {
+            let sig = s
+                .get_ref()
+                .build()
+                .map_err(|e| at(s.span(), field, e.to_string()))?;
+            if !sig.is_finite_over(0.0, d) {
+                return Err(at(
+                    s.span(),
+                    field,
+                    format!(
+                        "not finite within 0 to {d} s: a value, frequency or slope is too large"
+                    ),
+                ));
+            }
+            Ok(sig)
+        };
+        let command = match (&f.reference, &f.open_loop) {
+            (Some(r), None) => Command::Reference(build(r, "reference")?),
+            (None, Some(v)) => Command::OpenLoop(build(v, "open_loop")?),
+            (Some(_), Some(v)) => {
+                return Err(at(
+                    v.span(),
+                    "open_loop",
+                    "give either [reference] or [open_loop], not both".into(),
+                ))
+            }
+            (None, None) => {
+                return Err(FileError {
+                    file: file.to_string(),
+                    line: None,
+                    field: Some("reference".into()),
+                    message: "missing: give [reference] (closed loop) or [open_loop]".into(),
+                })
+            }
+        };
+        let load = match &f.load {
+            Some(l) => build(l, "load")?,
+            None => Signal::Constant(0.0),
+        };
+        if let Some(c) = &f.controller {
+            c.preset(file)?;
+            c.kind(file)?;
+        }
+        Ok(LoadedScenario {
+            scenario: Scenario::new(
+                f.name.clone().unwrap_or_else(|| default_name.to_string()),
+                d,
+                command,
+                load,
+            ),
+            controller: f.controller,
+            plant: f.plant.unwrap_or_default(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXAMPLE: &str = r#"
+name = "two-steps"
+duration_s = 8.0
+[reference]
+type = "steps"
+times_s = [4.0]
+values = [0.03, 0.06]
+[load]
+type = "sine"
+bias = 400.0
+amplitude = 200.0
+frequency_hz = 0.5
+[controller]
+controller = "pid"
+preset = "fast"
+[pid]
+"#;
+
+    #[test]
+    fn example_scenario_loads() {
+        // The trailing [pid] table is top-level, which is an unknown field.
+        let e = ScenarioFile::load_str(EXAMPLE, "ex.toml", "ex").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("pid"), "{e}");
+        assert_eq!(e.line, Some(16), "{e}");
+        let ok = EXAMPLE.replace("[pid]\n", "[controller.pid]\nkp = 3.0\n");
+        let s = ScenarioFile::load_str(&ok, "ex.toml", "ex").unwrap();
+        assert_eq!(s.scenario.name(), "two-steps");
+        assert_eq!(s.scenario.reference_m(3.9), Some(0.03));
+        assert_eq!(s.scenario.reference_m(4.0), Some(0.06));
+        assert!((s.scenario.load_n(0.5) - 600.0).abs() < 1e-9);
+        let c = s.controller.unwrap();
+        let cfg = c.resolve(c.kind("ex").unwrap().unwrap(), "ex").unwrap();
+        assert_eq!(cfg.kind, ControllerKind::Pid);
+        assert_eq!(cfg.pid.kp, 3.0);
+        assert_eq!(cfg.pid.ts_s, 0.01); // from the fast preset
+    }
+
+    #[test]
+    fn errors_name_line_and_field() {
+        let text = "duration_s = 5.0\n[reference]\ntype = \"steps\"\ntimes_s = [2.0, 1.0]\nvalues = [0, 1, 2]\n";
+        let e = ScenarioFile::load_str(text, "s.toml", "s").unwrap_err();
+        assert_eq!(
+            (e.line, e.field.as_deref()),
+            (Some(2), Some("reference")),
+            "{e}"
+        );
+        assert!(e.message.contains("strictly increasing"), "{e}");
+
+        let text = "duration_s = -1.0\n[reference]\ntype = \"constant\"\nvalue = 0.05\n";
+        let e = ScenarioFile::load_str(text, "s.toml", "s").unwrap_err();
+        assert_eq!(
+            (e.line, e.field.as_deref()),
+            (Some(1), Some("duration_s")),
+            "{e}"
+        );
+
+        let text = "duration_s = 5.0\n[reference]\ntype = \"constant\"\nvalue = \"high\"\n";
+        let e = ScenarioFile::load_str(text, "s.toml", "s").unwrap_err();
+        assert!(e.line.is_some(), "{e}");
+        assert!(e.to_string().starts_with("s.toml:"), "{e}");
+
+        let text = "duration_s = 5.0\n[reference]\ntype = \"constant\"\nvalu = 0.05\n";
+        let e = ScenarioFile::load_str(text, "s.toml", "s").unwrap_err();
+        assert!(e.message.contains("valu"), "{e}");
+
+        let text = "duration_s = 5.0\n";
+        let e = ScenarioFile::load_str(text, "s.toml", "s").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("reference"), "{e}");
+    }
+
+    #[test]
+    fn config_overrides_and_unknown_keys() {
+        let c: ConfigFile = parse(
+            "preset = \"paper\"\n[mpc_eso]\nrw = 50.0\n[eso]\nh_s = 0.004\n",
+            "c.toml",
+        )
+        .unwrap();
+        let cfg = c.resolve(ControllerKind::MpcEso, "c.toml").unwrap();
+        assert_eq!(cfg.mpc_eso.rw, 50.0);
+        assert_eq!(cfg.mpc_eso.np, 8);
+        assert_eq!(cfg.eso.h_s, 0.004);
+        assert_eq!(cfg.td.h_s, 0.004);
+        let e = parse::<ConfigFile>("[eso]\nbeta4 = 1.0\n", "c.toml").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("beta4"), "{e}");
+        assert_eq!(e.line, Some(2), "{e}");
+        let bad: ConfigFile = parse("preset = \"slow\"\n", "c.toml").unwrap();
+        assert!(bad.preset("c.toml").is_err());
+    }
+
+    /// The file's tables and keys are the controller paths of the console's
+    /// settings table, with its ranges; errors point at the line.
+    #[test]
+    fn every_controller_setting_is_a_key_with_its_range() {
+        for p in settings::PARAMS.iter() {
+            let text = format!("[{}]\n{} = {:?}\n", p.table(), p.key(), p.max.value());
+            let r = ConfigFile::parse_str(&text, "c.toml");
+            if !p.is_controller() {
+                let e = r.unwrap_err();
+                assert_eq!(e.line, Some(1), "{}: {e}", p.name);
+                continue;
+            }
+            let c = r.unwrap_or_else(|e| panic!("{}: {e}", p.name));
+            assert_eq!(c.params, vec![(p.name, p.check(p.max.value()).unwrap())]);
+            let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::Pid);
+            c.apply(&mut cfg).unwrap();
+            let s = dca_app::settings::Settings {
+                controller: cfg,
+                ..Default::default()
+            };
+            assert_eq!(p.get(&s), p.check(p.max.value()).unwrap(), "{}", p.name);
+            // Just above the range: refused, at the value's line.
+            let above = p.max.value() * 1.5 + 1.0;
+            let text = format!(
+                "preset = \"fast\"\n[{}]\n{} = {above:?}\n",
+                p.table(),
+                p.key()
+            );
+            let e = ConfigFile::parse_str(&text, "c.toml").unwrap_err();
+            assert_eq!((e.line, e.field.as_deref()), (Some(3), Some(p.name)), "{e}");
+            assert!(e.message.contains("out of range"), "{e}");
+        }
+        // Newly a key: the plausibility bound of the LVDT reading.
+        let c = ConfigFile::parse_str("[limits]\nxo_plausible_m = 0.5\n", "c.toml").unwrap();
+        let cfg = c.resolve(ControllerKind::MpcEso, "c.toml").unwrap();
+        assert_eq!(cfg.xo_plausible_m, 0.5);
+        // Whole numbers for the horizons; an integer is a float's equal.
+        let e = ConfigFile::parse_str("[mpc]\nnp = 6.5\n", "c.toml").unwrap_err();
+        assert!(e.message.contains("whole number"), "{e}");
+        let a = ConfigFile::parse_str("[mpc]\nrw = 50\n", "c.toml").unwrap();
+        let b = ConfigFile::parse_str("[mpc]\nrw = 50.0\n", "c.toml").unwrap();
+        assert_eq!(a, b);
+        // Not a number.
+        let e = ConfigFile::parse_str("[pid]\nkp = \"high\"\n", "c.toml").unwrap_err();
+        assert_eq!(e.line, Some(2), "{e}");
+    }
+
+    /// Found while fuzzing: finite parameters whose signal overflows within
+    /// the run were accepted (a 1e308 Hz sine is NaN at every tick).
+    #[test]
+    fn signals_that_overflow_within_the_run_are_refused() {
+        let head = "duration_s = 10.0\n[reference]\ntype = \"constant\"\nvalue = 0.05\n[load]\n";
+        for load in [
+            "type = \"sine\"\namplitude = 1.0\nfrequency_hz = 1e308\n",
+            "type = \"cosine\"\nbias = 1e308\namplitude = 1e308\nfrequency_hz = 1.0\n",
+            "type = \"ramp\"\nstart = 1e308\nslope_per_s = 1e307\n",
+        ] {
+            let e = ScenarioFile::load_str(&format!("{head}{load}"), "s.toml", "s").unwrap_err();
+            assert_eq!((e.line, e.field.as_deref()), (Some(5), Some("load")), "{e}");
+            assert!(e.message.contains("not finite"), "{e}");
+        }
+        let ok = format!("{head}type = \"ramp\"\nstart = 1e300\nslope_per_s = 1e300\n");
+        assert!(ScenarioFile::load_str(&ok, "s.toml", "s").is_ok());
+    }
+
+    /// Found by fuzzing: a file ending where a value is due gave an error
+    /// with an empty message ("c.toml:2: ").
+    #[test]
+    fn a_missing_value_at_the_end_is_named() {
+        for text in [
+            "[eso]\nbeta4 =",
+            "np =",
+            "duration_s = 5.0\n[reference]\ntype =  \n",
+        ] {
+            let e = ConfigFile::parse_str(text, "c.toml").unwrap_err();
+            assert!(!e.message.is_empty(), "{text:?}: {e}");
+            assert!(e.line.is_some(), "{text:?}: {e}");
+        }
+        let e = ConfigFile::parse_str("[eso]\nbeta1 =", "c.toml").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "c.toml:2: unexpected end of file: a value is missing"
+        );
+    }
+}

@@ -1,0 +1,322 @@
+//! `host-sim run`: one simulated run from the command line (docs/interfaces.md
+//! section 3), resolved into a [`RunSpec`] and written as a run log.
+//!
+//! Precedence: a command-line option wins over the scenario file's setting,
+//! which wins over the default (`paper`, `nonlinear`, `ideal`, seed 0).
+
+use std::path::Path;
+
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+
+use crate::io::runlog::LogError;
+use crate::model::effects::EffectError;
+use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
+use crate::model::scenario::{Command, Scenario, Signal};
+use crate::model::sensors::SensorMode;
+use crate::sim::config::{ConfigFile, FileError, ScenarioFile};
+use crate::sim::metrics::{self, Kind, Metrics};
+use crate::sim::{run, RunSpec, SimError, Trace};
+
+/// What the user asked for (the command-line options of `run`).
+#[derive(Clone, Debug, Default)]
+pub struct RunRequest {
+    /// A nominal scenario name or a TOML file.
+    pub scenario: String,
+    /// Controller name (else the scenario file's).
+    pub controller: Option<String>,
+    /// `paper`, `fast` or a TOML file (else the scenario file's, else `paper`).
+    pub config: Option<String>,
+    /// Hose model name.
+    pub hose: Option<String>,
+    /// `ideal` or `realistic`.
+    pub sensors: Option<String>,
+    /// Noise seed.
+    pub seed: Option<u64>,
+    /// Plant step, s (default 1e-4).
+    pub dt_s: Option<f64>,
+    /// Effects, `name` or `name:param=value,...` (added to the scenario file's).
+    pub effects: Vec<String>,
+}
+
+/// Why a request could not be resolved or run.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RequestError {
+    /// A configuration or scenario file is wrong.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// `--config` names no preset and no TOML file.
+    #[error("unknown --config '{0}': expected paper, fast or a .toml file")]
+    UnknownConfig(String),
+    /// `--scenario` names no nominal scenario and no TOML file.
+    #[error(
+        "unknown --scenario '{0}': expected step, sine, stepload, sineload, openloop or a .toml file"
+    )]
+    UnknownScenario(String),
+    /// An unknown controller name.
+    #[error("unknown controller '{0}': expected mpc-eso, mpc, pid or fuzzy-pid")]
+    UnknownController(String),
+    /// A closed-loop scenario without a controller.
+    #[error("no controller: give --controller (mpc-eso, mpc, pid, fuzzy-pid)")]
+    NoController,
+    /// An unknown hose model name.
+    #[error("unknown hose '{0}': expected nonlinear, linear or rigid")]
+    UnknownHose(String),
+    /// An unknown sensor mode.
+    #[error("unknown sensors '{0}': expected ideal or realistic")]
+    UnknownSensors(String),
+    /// The scenario file's effects are out of range (the file named).
+    #[error("{file}: {error}")]
+    FileEffects {
+        /// The scenario file.
+        file: String,
+        /// Why.
+        error: EffectError,
+    },
+    /// An `--effect` argument is wrong.
+    #[error("--effect: {0}")]
+    EffectArg(EffectError),
+    /// The run was refused or diverged.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The run log could not be written.
+    #[error(transparent)]
+    Log(#[from] LogError),
+}
+
+fn is_toml(s: &str) -> bool {
+    s.ends_with(".toml")
+}
+
+/// The controller configuration named by `--config` (a preset or a file).
+pub fn config_from_arg(arg: &str, kind: ControllerKind) -> Result<ControllerConfig, RequestError> {
+    if is_toml(arg) {
+        let f = ConfigFile::read(Path::new(arg))?;
+        Ok(f.resolve(kind, arg)?)
+    } else {
+        let preset =
+            Preset::from_name(arg).ok_or_else(|| RequestError::UnknownConfig(arg.to_string()))?;
+        Ok(ControllerConfig::preset(preset, kind))
+    }
+}
+
+/// Resolve a request into a run specification.
+pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
+    let (scenario, file_cfg, plant_sec) = if is_toml(&req.scenario) {
+        let s = ScenarioFile::load(Path::new(&req.scenario))?;
+        (s.scenario, s.controller, s.plant)
+    } else {
+        let s = Scenario::by_name(&req.scenario)
+            .ok_or_else(|| RequestError::UnknownScenario(req.scenario.clone()))?;
+        (s, None, Default::default())
+    };
+    let file = req.scenario.as_str();
+    let kind_name = match (&req.controller, &file_cfg) {
+        (Some(k), _) => Some(k.clone()),
+        (None, Some(c)) => c.controller.clone(),
+        (None, None) => None,
+    };
+    let kind = match kind_name {
+        Some(k) => ControllerKind::from_name(&k).ok_or(RequestError::UnknownController(k))?,
+        None if scenario.is_open_loop() => ControllerKind::MpcEso,
+        None => return Err(RequestError::NoController),
+    };
+    let controller = match (&req.config, &file_cfg) {
+        (Some(arg), _) => config_from_arg(arg, kind)?,
+        (None, Some(c)) => c.resolve(kind, file)?,
+        (None, None) => ControllerConfig::preset(Preset::Paper, kind),
+    };
+    let hose_name = req
+        .hose
+        .clone()
+        .or(plant_sec.hose)
+        .unwrap_or_else(|| "nonlinear".into());
+    let hose = HoseModel::by_name(&hose_name)
+        .ok_or_else(|| RequestError::UnknownHose(hose_name.clone()))?;
+    let sensors_name = req
+        .sensors
+        .clone()
+        .or(plant_sec.sensors)
+        .unwrap_or_else(|| "ideal".into());
+    let sensors = SensorMode::by_name(&sensors_name)
+        .ok_or_else(|| RequestError::UnknownSensors(sensors_name.clone()))?;
+    // docs/model.md section 4: the implicit GRNN hose runs at 2e-4 s.
+    let default_dt = if hose_name.starts_with("grnn") {
+        2.0e-4
+    } else {
+        NOMINAL_DT_S
+    };
+    let dt_s = req.dt_s.or(plant_sec.dt_s).unwrap_or(default_dt);
+    let mut effects = plant_sec.effects.unwrap_or_default();
+    effects
+        .validate()
+        .map_err(|error| RequestError::FileEffects {
+            file: req.scenario.clone(),
+            error,
+        })?;
+    for arg in &req.effects {
+        effects.parse_arg(arg).map_err(RequestError::EffectArg)?;
+    }
+    Ok(RunSpec {
+        scenario,
+        controller,
+        plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
+        effects,
+        sensors,
+        seed: req.seed.or(plant_sec.seed).unwrap_or(0),
+        dt_s,
+    })
+}
+
+/// The metadata lines a simulated run's log carries.
+pub fn log_meta(spec: &RunSpec) -> Vec<(&'static str, String)> {
+    let effects: Vec<String> = spec
+        .effects
+        .active()
+        .iter()
+        .map(|k| {
+            let v = spec.effects.get(*k).unwrap_or_default();
+            let kv: Vec<String> = k
+                .params()
+                .iter()
+                .zip(v)
+                .map(|(p, x)| format!("{}={x:e}", p.name))
+                .collect();
+            format!("{}:{}", k.name(), kv.join(","))
+        })
+        .collect();
+    vec![
+        (
+            "effects",
+            if effects.is_empty() {
+                "none".into()
+            } else {
+                effects.join(";")
+            },
+        ),
+        ("hose", spec.plant.hose_model().name().to_string()),
+        ("sensors", spec.sensors.name().to_string()),
+        ("seed", spec.seed.to_string()),
+        ("dt_s", spec.dt_s.to_string()),
+        ("source", format!("host-sim {}", env!("CARGO_PKG_VERSION"))),
+    ]
+}
+
+/// Section 8 metrics of a trace, choosing the metric set from its scenario.
+pub fn trace_metrics(trace: &Trace, scenario: &Scenario) -> Metrics {
+    let points = trace.points(false);
+    let constant_ref = matches!(scenario.command(), Command::Reference(Signal::Constant(_)));
+    let kind = if constant_ref {
+        Kind::Step
+    } else {
+        Kind::Tracking
+    };
+    let loads: &[f64] = if scenario.name() == "stepload" {
+        &[4.0, 7.0]
+    } else {
+        &[]
+    };
+    metrics::compute(&points, kind, loads)
+}
+
+/// Run the request, write the log to `log`, and return the trace.
+pub fn execute(req: &RunRequest, log: &Path) -> Result<(RunSpec, Trace), RequestError> {
+    let spec = resolve(req)?;
+    let trace = run(&spec)?;
+    trace.to_runlog(&log_meta(&spec)).write(log)?;
+    Ok((spec, trace))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn req(s: &str) -> RunRequest {
+        RunRequest {
+            scenario: s.into(),
+            controller: Some("pid".into()),
+            ..RunRequest::default()
+        }
+    }
+
+    #[test]
+    fn defaults_and_overrides() {
+        let spec = resolve(&req("step")).unwrap();
+        assert_eq!(spec.controller.kind, ControllerKind::Pid);
+        assert_eq!(spec.sensors, SensorMode::Ideal);
+        assert_eq!(spec.dt_s, 1e-4);
+        let spec = resolve(&RunRequest {
+            config: Some("fast".into()),
+            sensors: Some("realistic".into()),
+            seed: Some(9),
+            ..req("sine")
+        })
+        .unwrap();
+        assert_eq!(spec.controller.pid.ts_s, 0.01);
+        assert_eq!(spec.sensors, SensorMode::Realistic);
+        assert_eq!(spec.seed, 9);
+    }
+
+    #[test]
+    fn effects_from_the_command_line() {
+        let spec = resolve(&RunRequest {
+            effects: vec!["leakage:g_m3pspa=2e-13".into(), "friction".into()],
+            ..req("stepload")
+        })
+        .unwrap();
+        assert_eq!(spec.effects.leakage.unwrap().g_m3pspa, 2e-13);
+        assert!(spec.effects.friction.is_some());
+        let meta = log_meta(&spec);
+        assert!(
+            meta[0]
+                .1
+                .starts_with("leakage:g_m3pspa=2e-13,exponent=1e0;friction:"),
+            "{:?}",
+            meta[0]
+        );
+        let e = resolve(&RunRequest {
+            effects: vec!["gremlins".into()],
+            ..req("step")
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--effect") && e.contains("gremlins"), "{e}");
+    }
+
+    #[test]
+    fn bad_names_are_explained() {
+        for (r, what) in [
+            (req("jump"), "--scenario"),
+            (
+                RunRequest {
+                    controller: Some("lqr".into()),
+                    ..req("step")
+                },
+                "controller",
+            ),
+            (
+                RunRequest {
+                    config: Some("slow".into()),
+                    ..req("step")
+                },
+                "--config",
+            ),
+            (
+                RunRequest {
+                    hose: Some("steel".into()),
+                    ..req("step")
+                },
+                "hose",
+            ),
+            (
+                RunRequest {
+                    controller: None,
+                    ..req("step")
+                },
+                "--controller",
+            ),
+        ] {
+            let e = resolve(&r).unwrap_err().to_string();
+            assert!(e.contains(what), "{e}");
+        }
+    }
+}

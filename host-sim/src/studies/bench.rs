@@ -1,0 +1,251 @@
+//! `host-sim bench`: speed of the simulator and of the gap diagnosis, measured
+//! side by side in one run.
+//!
+//! Timing on a shared machine is noisy: every figure is the best of several
+//! repetitions, and the table reports ratios (real-time factors, the distance
+//! to the RK4 floor, the speed-up of a batch on every core) measured in the
+//! same process.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use rayon::prelude::*;
+
+use crate::gap::diagnose::{diagnose, Options};
+use crate::gap::run::Run;
+use crate::gap::validation::{check_scenario, fit_scenario, rig_log};
+use crate::model::effects::{EffectKind, Effects};
+use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
+use crate::model::scenario::Scenario;
+use crate::model::sensors::SensorMode;
+use crate::sim::{run, RunSpec};
+
+/// One line of the benchmark table.
+#[derive(Clone, Debug)]
+pub struct BenchRow {
+    /// What was measured.
+    pub what: String,
+    /// The figure.
+    pub value: f64,
+    /// Its unit.
+    pub unit: &'static str,
+}
+
+fn best_of<F: FnMut() -> f64>(reps: usize, mut f: F) -> f64 {
+    (0..reps).map(|_| f()).fold(f64::INFINITY, f64::min)
+}
+
+fn spec(scenario: &str, kind: ControllerKind, hose: HoseModel, dt_s: f64) -> RunSpec {
+    RunSpec {
+        scenario: Scenario::by_name(scenario).expect("nominal scenario"),
+        controller: ControllerConfig::preset(Preset::Paper, kind),
+        plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
+        effects: Default::default(),
+        sensors: SensorMode::Ideal,
+        seed: 0,
+        dt_s,
+    }
+}
+
+/// Seconds of wall time for one run of `s`.
+fn time_run(s: &RunSpec) -> f64 {
+    let t0 = Instant::now();
+    black_box(run(s).expect("run"));
+    t0.elapsed().as_secs_f64()
+}
+
+fn row(what: impl Into<String>, value: f64, unit: &'static str) -> BenchRow {
+    BenchRow {
+        what: what.into(),
+        value,
+        unit,
+    }
+}
+
+/// Run the benchmarks; `reps` repetitions of each (best kept).
+pub fn bench(reps: usize) -> Vec<BenchRow> {
+    let reps = reps.max(1);
+    let (mut rows, floor) = plant_rows(reps);
+    rows.extend(run_rows(reps, floor));
+    rows.push(gap_row());
+    rows.push(batch_row(reps));
+    rows
+}
+
+/// One derivative evaluation and one RK4 step of the nominal plant on a
+/// moving state, and the real-time factor they bound (returned as well).
+fn plant_rows(reps: usize) -> (Vec<BenchRow>, f64) {
+    let plant = Plant::nominal();
+    let x0 = plant.initial_state(0.0);
+    let n = 200_000;
+    let deriv_s = best_of(reps, || {
+        let mut x = x0;
+        let t0 = Instant::now();
+        let mut acc = 0.0;
+        for i in 0..n {
+            x.xo_m = 1e-9 * i as f64;
+            acc += black_box(plant.derivative(black_box(&x), 0.05, 300.0))[4];
+        }
+        black_box(acc);
+        t0.elapsed().as_secs_f64() / n as f64
+    });
+    let step_s = best_of(reps, || {
+        let mut x = x0;
+        let t0 = Instant::now();
+        for _ in 0..n {
+            plant.step(black_box(&mut x), 0.01, 300.0, NOMINAL_DT_S);
+        }
+        black_box(x);
+        t0.elapsed().as_secs_f64() / n as f64
+    });
+    let floor = NOMINAL_DT_S / (4.0 * deriv_s);
+    let rows = vec![
+        row(
+            "nominal plant: one derivative evaluation",
+            deriv_s * 1e9,
+            "ns",
+        ),
+        row("nominal plant: one RK4 step", step_s * 1e9, "ns"),
+        row(
+            "RK4 floor at dt = 1e-4 s (4 derivatives a step only)",
+            floor,
+            "x real time",
+        ),
+    ];
+    (rows, floor)
+}
+
+/// Real-time factors of whole runs: the plant alone, with MPC-ESO (and its
+/// share of the RK4 `floor`), the GRNN plant with MPC-ESO.
+fn run_rows(reps: usize, floor: f64) -> Vec<BenchRow> {
+    let mut rows = Vec::new();
+    let ol = spec(
+        "openloop",
+        ControllerKind::MpcEso,
+        HoseModel::Nonlinear,
+        NOMINAL_DT_S,
+    );
+    let t = best_of(reps, || time_run(&ol));
+    rows.push(row(
+        "plant only (openloop, 4 s, dt 1e-4, logging)",
+        ol.scenario.duration_s() / t,
+        "x real time",
+    ));
+    let cl = spec(
+        "stepload",
+        ControllerKind::MpcEso,
+        HoseModel::Nonlinear,
+        NOMINAL_DT_S,
+    );
+    let t = best_of(reps, || time_run(&cl));
+    let rtf = cl.scenario.duration_s() / t;
+    rows.push(row(
+        "nominal plant + MPC-ESO (stepload, 10 s, dt 1e-4), one core",
+        rtf,
+        "x real time",
+    ));
+    rows.push(row(
+        "  share of the RK4 floor reached",
+        rtf / floor * 100.0,
+        "%",
+    ));
+    if let Some(grnn) = HoseModel::by_name("grnn") {
+        let g = spec("stepload", ControllerKind::MpcEso, grnn, 2e-4);
+        let t = best_of(reps, || time_run(&g));
+        rows.push(row(
+            "grnn plant + MPC-ESO (stepload, 10 s, dt 2e-4), one core",
+            g.scenario.duration_s() / t,
+            "x real time",
+        ));
+    }
+    rows
+}
+
+/// One gap diagnosis of two 10 s runs (one fit, one check) on one core.
+fn gap_row() -> BenchRow {
+    let mut e = Effects::NONE;
+    e.set(EffectKind::Friction, Some(&[20.0, 30.0, 2e-3]));
+    let fit = rig_log(fit_scenario(), ControllerKind::MpcEso, &e, 1);
+    let check = rig_log(check_scenario(), ControllerKind::Pid, &e, 2);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let t0 = Instant::now();
+    let (d, _) = one.install(|| {
+        diagnose(
+            vec![Run::new("fit".into(), fit.clone())],
+            vec![Run::new("check".into(), check.clone())],
+            &Plant::nominal(),
+            &Options::default(),
+        )
+    });
+    let t = t0.elapsed().as_secs_f64();
+    row(
+        format!(
+            "gap diagnosis, two 10 s runs, large friction (verdict {}, pair search {}), one core",
+            d.verdict,
+            if d.combined.is_some() {
+                "ran"
+            } else {
+                "skipped"
+            }
+        ),
+        t,
+        "s",
+    )
+}
+
+/// A batch of 16 runs on one thread against every thread.
+fn batch_row(reps: usize) -> BenchRow {
+    let batch: Vec<RunSpec> = (0..16)
+        .map(|i| {
+            let mut s = spec(
+                "step",
+                ControllerKind::ALL[i % 4],
+                HoseModel::Nonlinear,
+                NOMINAL_DT_S,
+            );
+            s.sensors = SensorMode::Realistic;
+            s.seed = i as u64;
+            s
+        })
+        .collect();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let t1 = best_of(reps, || {
+        one.install(|| {
+            let t0 = Instant::now();
+            batch.par_iter().for_each(|s| {
+                black_box(run(s).expect("run"));
+            });
+            t0.elapsed().as_secs_f64()
+        })
+    });
+    let tn = best_of(reps, || {
+        let t0 = Instant::now();
+        batch.par_iter().for_each(|s| {
+            black_box(run(s).expect("run"));
+        });
+        t0.elapsed().as_secs_f64()
+    });
+    row(
+        format!(
+            "batch of 16 runs: speed-up on {} threads over 1",
+            rayon::current_num_threads()
+        ),
+        t1 / tn,
+        "x",
+    )
+}
+
+/// The table as text.
+pub fn table(rows: &[BenchRow]) -> String {
+    let w = rows.iter().map(|r| r.what.len()).max().unwrap_or(0);
+    rows.iter()
+        .map(|r| format!("{:w$}  {:>10.1} {}\n", r.what, r.value, r.unit))
+        .collect()
+}
