@@ -77,3 +77,26 @@ fn open_loop_scenarios_are_refused() {
         Err(HilError::Spec(_))
     ));
 }
+
+/// The board designs on its own nominal model: a non-nominal design model is
+/// refused with a clear reason before any port is opened; a rig off nominal
+/// is fine (it is simulated here).
+#[test]
+fn a_design_model_off_nominal_is_refused() {
+    let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
+    let mut s = spec("step", cfg);
+    let mut rig = *s.plant.params();
+    rig.m_kg = 60.0;
+    s.plant = Plant::new(rig, s.plant.hose_model());
+    host_sim::hil::check_board_model(&s).unwrap();
+    cfg.plant.m_kg = 60.0;
+    let s = spec("step", cfg);
+    let e = host_sim::hil::check_board_model(&s)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("model.m_kg") && e.contains("nominal"), "{e}");
+    let e = host_sim::hil::run_hil_serial(&s, "/dev/nonexistent", &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("design model"), "{e}");
+}

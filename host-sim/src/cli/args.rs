@@ -24,9 +24,33 @@ pub struct RunOpts {
     /// `name:param=value,...`, e.g. leakage:g_m3pspa=1e-13 (docs/model.md section 12).
     #[arg(long = "effect")]
     effects: Vec<String>,
+    /// The rig's physical parameters: a TOML file of PlantParams keys (and
+    /// [hose]); replaces the scenario file's [plant.params] (default: nominal).
+    #[arg(long, value_name = "FILE.toml")]
+    plant: Option<String>,
 }
 
 impl RunOpts {
+    /// The options as given, `--key value ...` (for reports).
+    pub fn describe(&self) -> String {
+        let mut s = format!("--scenario {}", self.scenario);
+        for (k, v) in [
+            ("controller", &self.controller),
+            ("config", &self.config),
+            ("hose", &self.hose),
+            ("sensors", &self.sensors),
+            ("plant", &self.plant),
+        ] {
+            if let Some(v) = v {
+                s += &format!(" --{k} {v}");
+            }
+        }
+        for e in &self.effects {
+            s += &format!(" --effect {e}");
+        }
+        s
+    }
+
     /// The run request with a seed and a plant step.
     pub fn request(self, seed: Option<u64>, dt_s: Option<f64>) -> RunRequest {
         RunRequest {
@@ -38,6 +62,7 @@ impl RunOpts {
             seed,
             dt_s,
             effects: self.effects,
+            plant: self.plant,
         }
     }
 }

@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use dca_core::params::PlantParams;
+use host_sim::sim::config::read_plant_file;
 use host_sim::studies::paper::{run_paper, table_markdown, PaperOptions};
 
 use super::args::preset;
@@ -17,6 +19,10 @@ pub struct Args {
     /// Also write every run's log into OUT/logs.
     #[arg(long)]
     logs: bool,
+    /// The rig's physical parameters: a TOML file of PlantParams keys (and
+    /// [hose]); the controllers keep their nominal design model.
+    #[arg(long, value_name = "FILE.toml")]
+    plant: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -25,6 +31,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         preset: preset(&a.config)?,
         write_logs: a.logs,
         progress: true,
+        rig: match &a.plant {
+            Some(p) => read_plant_file(p)?,
+            None => PlantParams::NOMINAL,
+        },
     })?;
     println!("{}", table_markdown(&res.table));
     println!("report: {}", res.report.display());

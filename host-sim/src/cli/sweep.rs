@@ -2,7 +2,8 @@
 
 use std::path::PathBuf;
 
-use host_sim::sim::batch::{sweep, write_csv, SweepParam};
+use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, SweepParam};
+use host_sim::studies::montecarlo::{outcome, write_report};
 
 use super::args::RunOpts;
 
@@ -17,6 +18,20 @@ pub struct Args {
     /// Noise seeds: `A..B` (B excluded) or `a,b,c` (default 0).
     #[arg(long, default_value = "0")]
     seeds: String,
+    /// Monte Carlo over the rig: draw the plant parameters per seed uniformly
+    /// within +-F of their value (F a fraction in [0, 1), e.g. 0.1).
+    #[arg(long, value_name = "F")]
+    perturb: Option<f64>,
+    /// The plant parameters drawn by --perturb, `k1,k2,...` (`hose.<key>` for
+    /// the hose wall; default: every physical one).
+    #[arg(long, value_name = "KEYS", requires = "perturb")]
+    perturb_keys: Option<String>,
+    /// Also write each run's log as DIR/run-<index>.csv.
+    #[arg(long, value_name = "DIR")]
+    logs: Option<PathBuf>,
+    /// Write a Markdown report with histograms of the metrics to DIR/report.md.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
     /// Where to write the CSV.
     #[arg(long)]
     out: PathBuf,
@@ -48,9 +63,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|p| SweepParam::parse(p))
         .collect::<Result<Vec<_>, _>>()?;
     let seeds = parse_seeds(&a.seeds)?;
+    let perturb = a
+        .perturb
+        .map(|f| Perturb::new(f, a.perturb_keys.as_deref()))
+        .transpose()?;
+    let setup = setup_text(&a, perturb.as_ref(), seeds.len());
     let base = a.what.request(None, None);
     let t0 = std::time::Instant::now();
-    let rows = sweep(&base, &params, &seeds, true)?;
+    let opts = BatchOptions {
+        perturb,
+        logs: a.logs.clone(),
+        progress: true,
+    };
+    let rows = sweep_with(&base, &params, &seeds, &opts)?;
     write_csv(&rows, &a.out)?;
     let failed = rows.iter().filter(|r| r.result.is_err()).count();
     eprintln!(
@@ -61,5 +86,35 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rayon::current_num_threads(),
         a.out.display()
     );
+    if let Some(dir) = &a.report {
+        let o = outcome(&rows);
+        let path = write_report(&rows, dir, "DCA: sweep report", &setup)?;
+        eprintln!(
+            "{} stable, {} unstable, {} diverged, {} failed -> {}",
+            o.stable,
+            o.unstable,
+            o.diverged,
+            o.failed,
+            path.display()
+        );
+    }
     Ok(())
+}
+
+/// What the sweep ran, for the report (Markdown).
+fn setup_text(a: &Args, perturb: Option<&Perturb>, seeds: usize) -> String {
+    let mut s = format!("`host-sim sweep`, {seeds} seed(s) `{}`", a.seeds);
+    if !a.params.is_empty() {
+        s += &format!(", parameters `{}`", a.params.join("`, `"));
+    }
+    if let Some(p) = perturb {
+        let keys: Vec<&str> = p.keys.iter().map(|k| k.name).collect();
+        s += &format!(
+            ". Rig drawn per seed uniformly within +-{} of its value: {} (the controller keeps its \
+             design model)",
+            p.fraction,
+            keys.join(", ")
+        );
+    }
+    s + ". Options: `" + &a.what.describe() + "`."
 }

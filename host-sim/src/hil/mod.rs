@@ -584,12 +584,31 @@ fn run_on_ports(
     trace
 }
 
+/// Refuse a controller whose design model is not the nominal plant: the
+/// board designs its controllers on its own nominal model (`dca_core`'s
+/// [`dca_core::params::PlantParams::NOMINAL`]) and no console setting changes it. The rig
+/// simulated here (`--plant`) may be anything.
+pub fn check_board_model(spec: &RunSpec) -> Result<(), HilError> {
+    let off = crate::model::params::columns(&spec.controller.plant, &[], true);
+    if off.is_empty() {
+        return Ok(());
+    }
+    let keys: Vec<&str> = off.iter().map(|(k, _)| *k).collect();
+    Err(HilError::Spec(format!(
+        "the controller's design model is not nominal ({}): the board designs on its own \
+         nominal model, which cannot be changed from here; remove [model] / [controller.model] \
+         (the rig's parameters, --plant or [plant.params], may differ)",
+        keys.join(", ")
+    )))
+}
+
 /// Run `spec` against a real board: the HIL link on `port`, the plant here.
 pub fn run_hil_serial(
     spec: &RunSpec,
     port: &str,
     opts: &SerialOptions,
 ) -> Result<HilTrace, HilError> {
+    check_board_model(spec)?;
     let mut console = match &opts.console {
         Some(c) => Some(ConsoleClient::connect(
             SerialLink::open(c, CONSOLE_BAUD, Duration::from_millis(50))?,
@@ -621,6 +640,7 @@ pub fn run_hil_qemu(
     opts: &QemuOptions,
     link_timeout_ms: Option<u32>,
 ) -> Result<HilTrace, HilError> {
+    check_board_model(spec)?;
     let emu = Emulator::start(elf, opts)?;
     let mut console = ConsoleClient::connect(
         SerialLink::open(&emu.console_tty, CONSOLE_BAUD, Duration::from_millis(50))?,

@@ -1,6 +1,7 @@
 //! Layer `model`: what is simulated, without any loop around it.
 //!
 //! * [`plant`]: the nominal 11-state plant of docs/model.md sections 2-4;
+//! * [`params`]: its physical parameters by key: from TOML, checked, drawn for Monte Carlo;
 //! * [`hose`]: the GRNN hose models the plant runs (networks, data, fast
 //!   evaluation, the implicit pressure-rate solve);
 //! * [`effects`]: the unmodelled effects of docs/model.md section 12;
@@ -12,6 +13,7 @@
 
 pub mod effects;
 pub mod hose;
+pub mod params;
 pub mod plant;
 pub mod rig;
 pub mod scenario;

@@ -6,17 +6,27 @@
 //! `mpc_eso.rw=10,33,100` or `eso.beta1=20,30`) and noise seeds. Every
 //! combination is one run of the same scenario; the runs go to a rayon pool
 //! and each yields one row of metrics.
+//!
+//! Monte Carlo over the rig ([`Perturb`], `sweep --perturb F`): for each seed
+//! the listed plant parameters are drawn uniformly within +-F of the rig's
+//! value ([`crate::model::params::draw`]); the controller keeps its design
+//! model, so each run tests robustness to a rig that is not the model. The
+//! drawn values are `plant.<key>` columns of the CSV and metadata lines of
+//! the run logs (`--logs DIR`).
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::io::files::{self, PathError};
+use crate::io::runlog::LogError;
+use crate::model::params::{self, ParamKey, ParamsError};
+use crate::model::plant::Plant;
 use crate::sim::config::{check_value, controller_param, set_param, ParamError};
 use crate::sim::metrics::Metrics;
-use crate::sim::request::{resolve, trace_metrics, RequestError, RunRequest};
+use crate::sim::request::{log_meta_with, resolve, trace_metrics, RequestError, RunRequest};
 use crate::sim::{run, SimError};
 
 /// Why a sweep parameter, the sweep or one of its runs failed.
@@ -45,6 +55,56 @@ pub enum SweepError {
     /// A run was refused or diverged.
     #[error(transparent)]
     Sim(#[from] SimError),
+    /// `--perturb` or `--perturb-keys` is wrong.
+    #[error("{0}")]
+    Perturb(String),
+    /// A drawn rig is not physical (e.g. a fraction near 1).
+    #[error("drawn rig not physical: `{}`: {}", .0.key, .0.message)]
+    Draw(ParamsError),
+    /// The run-log directory could not be created.
+    #[error("--logs: {0}")]
+    LogDir(String),
+    /// A run's log could not be written.
+    #[error(transparent)]
+    Log(#[from] LogError),
+}
+
+/// Monte Carlo draws of the rig's parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Perturb {
+    /// Half-width of the uniform draw, as a fraction of each value, in [0, 1).
+    pub fraction: f64,
+    /// The parameters drawn.
+    pub keys: Vec<&'static ParamKey>,
+}
+
+impl Perturb {
+    /// `fraction` (in [0, 1)) and the keys `k1,k2,...` (default: the
+    /// physical ones, [`params::physical_keys`]).
+    pub fn new(fraction: f64, keys: Option<&str>) -> Result<Self, SweepError> {
+        if !(fraction.is_finite() && (0.0..1.0).contains(&fraction)) {
+            return Err(SweepError::Perturb(format!(
+                "--perturb {fraction}: expected a fraction in [0, 1), e.g. 0.1 for +-10 %"
+            )));
+        }
+        let keys = match keys {
+            None => params::physical_keys(),
+            Some(list) => params::parse_keys(list)
+                .map_err(|e| SweepError::Perturb(format!("--perturb-keys: {e}")))?,
+        };
+        Ok(Self { fraction, keys })
+    }
+}
+
+/// What a batch does besides the metrics.
+#[derive(Clone, Debug, Default)]
+pub struct BatchOptions {
+    /// Draw the rig per seed.
+    pub perturb: Option<Perturb>,
+    /// Write each run's log as `DIR/run-<index>.csv`.
+    pub logs: Option<PathBuf>,
+    /// Show a progress bar.
+    pub progress: bool,
 }
 
 /// One swept parameter: a configuration path and its values.
@@ -95,8 +155,12 @@ impl SweepParam {
 /// One finished run of a batch.
 #[derive(Clone, Debug)]
 pub struct BatchRow {
+    /// The run's index (its log is `run-<index>.csv`).
+    pub index: usize,
     /// Parameter values of this run, in sweep order.
     pub params: Vec<(String, f64)>,
+    /// The rig's drawn values, `(plant.<key>, value)` (empty without `--perturb`).
+    pub plant: Vec<(&'static str, f64)>,
     /// Noise seed.
     pub seed: u64,
     /// Metrics, or why the run failed (e.g. a design refused).
@@ -110,8 +174,20 @@ pub fn sweep(
     seeds: &[u64],
     progress: bool,
 ) -> Result<Vec<BatchRow>, SweepError> {
-    // The base request must resolve on its own.
-    resolve(base)?;
+    sweep_with(
+        base,
+        params,
+        seeds,
+        &BatchOptions {
+            progress,
+            ..BatchOptions::default()
+        },
+    )
+}
+
+/// The jobs of a sweep: every combination of the parameters' values, times
+/// every seed (seeds innermost).
+fn jobs(params: &[SweepParam], seeds: &[u64]) -> Vec<(Vec<(String, f64)>, u64)> {
     let mut combos: Vec<Vec<(String, f64)>> = vec![Vec::new()];
     for p in params {
         combos = combos
@@ -125,11 +201,54 @@ pub fn sweep(
             })
             .collect();
     }
-    let jobs: Vec<(Vec<(String, f64)>, u64)> = combos
+    combos
         .into_iter()
         .flat_map(|c| seeds.iter().map(move |s| (c.clone(), *s)))
-        .collect();
-    let bar = if progress {
+        .collect()
+}
+
+/// One run of a batch: the request with `seed`, the swept values, the rig
+/// `rig` (drawn or the base's), the log if asked for.
+fn one_run(
+    base: &RunRequest,
+    assign: &[(String, f64)],
+    seed: u64,
+    rig: Option<&(dca_core::params::PlantParams, Vec<&'static ParamKey>)>,
+    log: Option<&Path>,
+) -> Result<Metrics, SweepError> {
+    let mut spec = resolve(&RunRequest {
+        seed: Some(seed),
+        ..base.clone()
+    })?;
+    for (path, v) in assign {
+        set_param(&mut spec.controller, path, *v)?;
+    }
+    if let Some((p, _)) = rig {
+        params::check(p).map_err(SweepError::Draw)?;
+        spec.plant = Plant::new(*p, spec.plant.hose_model());
+    }
+    let trace = run(&spec)?;
+    if let Some(path) = log {
+        let drawn = rig.map(|r| r.1.as_slice()).unwrap_or_default();
+        trace.to_runlog(&log_meta_with(&spec, drawn)).write(path)?;
+    }
+    Ok(trace_metrics(&trace, &spec.scenario))
+}
+
+/// [`sweep`] with Monte Carlo draws of the rig and run logs ([`BatchOptions`]).
+pub fn sweep_with(
+    base: &RunRequest,
+    params: &[SweepParam],
+    seeds: &[u64],
+    opts: &BatchOptions,
+) -> Result<Vec<BatchRow>, SweepError> {
+    // The base request must resolve on its own.
+    let base_rig = *resolve(base)?.plant.params();
+    if let Some(dir) = &opts.logs {
+        files::create_dir_all(dir).map_err(|e| SweepError::LogDir(e.to_string()))?;
+    }
+    let jobs = jobs(params, seeds);
+    let bar = if opts.progress {
         ProgressBar::new(jobs.len() as u64)
     } else {
         ProgressBar::hidden()
@@ -140,21 +259,27 @@ pub fn sweep(
     );
     let rows = jobs
         .into_par_iter()
-        .map(|(assign, seed)| {
-            let result = (|| {
-                let mut spec = resolve(&RunRequest {
-                    seed: Some(seed),
-                    ..base.clone()
-                })?;
-                for (path, v) in &assign {
-                    set_param(&mut spec.controller, path, *v)?;
-                }
-                let trace = run(&spec)?;
-                Ok(trace_metrics(&trace, &spec.scenario))
-            })();
+        .enumerate()
+        .map(|(index, (assign, seed))| {
+            let rig = opts
+                .perturb
+                .as_ref()
+                .map(|pt| params::draw(&base_rig, &pt.keys, pt.fraction, seed));
+            let plant = rig
+                .as_ref()
+                .map(|(_, d)| d.iter().map(|(k, v)| (k.column, *v)).collect())
+                .unwrap_or_default();
+            let rig = rig.map(|(p, d)| (p, d.into_iter().map(|(k, _)| k).collect::<Vec<_>>()));
+            let log = opts
+                .logs
+                .as_ref()
+                .map(|d| d.join(format!("run-{index}.csv")));
+            let result = one_run(base, &assign, seed, rig.as_ref(), log.as_deref());
             bar.inc(1);
             BatchRow {
+                index,
                 params: assign,
+                plant,
                 seed,
                 result,
             }
@@ -177,6 +302,11 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
         .unwrap_or_default();
     let mut header = names.clone();
     header.extend(
+        rows.first()
+            .map(|r| r.plant.iter().map(|p| p.0.to_string()).collect::<Vec<_>>())
+            .unwrap_or_default(),
+    );
+    header.extend(
         [
             "seed",
             "rise_time_s",
@@ -194,6 +324,7 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
     let _ = writeln!(s, "{}", header.join(","));
     for r in rows {
         let mut f: Vec<String> = r.params.iter().map(|p| format!("{}", p.1)).collect();
+        f.extend(r.plant.iter().map(|p| format!("{:e}", p.1)));
         f.push(r.seed.to_string());
         match &r.result {
             Ok(m) => {
@@ -283,5 +414,63 @@ mod tests {
                 .unwrap()
         };
         assert!(rise(33.0) > rise(10.0), "{} vs {}", rise(33.0), rise(10.0));
+    }
+
+    /// A small Monte Carlo: 4 draws at F = 0.1 on stepload, every run
+    /// finishes; the drawn values are CSV columns and metadata lines of the
+    /// logs, which the run-log reader reads.
+    #[test]
+    fn monte_carlo_draws_rigs_and_logs_them() {
+        let dir = std::env::temp_dir().join(format!("dca-mc-{}", std::process::id()));
+        let base = RunRequest {
+            scenario: "stepload".into(),
+            controller: Some("mpc-eso".into()),
+            sensors: Some("realistic".into()),
+            ..RunRequest::default()
+        };
+        let opts = BatchOptions {
+            perturb: Some(Perturb::new(0.1, None).unwrap()),
+            logs: Some(dir.join("logs")),
+            progress: false,
+        };
+        let rows = sweep_with(&base, &[], &[0, 1, 2, 3], &opts).unwrap();
+        assert_eq!(rows.len(), 4);
+        let n = params::physical_keys().len();
+        for r in &rows {
+            let m = r.result.as_ref().unwrap();
+            let dev = m.load[0].deviation_mm;
+            assert!(dev.is_finite() && dev < 10.0, "run {}: {dev} mm", r.index);
+            assert_eq!(r.plant.len(), n);
+            for (col, v) in &r.plant {
+                let k = params::KEYS.iter().find(|k| k.column == *col).unwrap();
+                let v0 = k.get(&dca_core::params::PlantParams::NOMINAL);
+                assert!((v - v0).abs() <= 0.1 * v0.abs() * (1.0 + 1e-12), "{col}");
+            }
+            let log = crate::io::runlog::RunLog::read(
+                &dir.join("logs").join(format!("run-{}.csv", r.index)),
+            )
+            .unwrap();
+            assert_eq!(
+                log.meta("plant.m_kg"),
+                Some(format!("{:e}", r.plant[0].1).as_str())
+            );
+            assert!(log.meta("plant.p_atm_pa").is_none());
+            assert_eq!(log.t_s.len(), 10_000);
+        }
+        assert_ne!(rows[0].plant[0].1, rows[1].plant[0].1);
+        let csv = dir.join("mc.csv");
+        write_csv(&rows, &csv).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let header = text.lines().next().unwrap();
+        assert!(header.starts_with("plant.m_kg,plant.ap1_m2,"), "{header}");
+        assert!(header.contains("plant.hose.ps_pa,seed,"), "{header}");
+        // Bad fractions and keys are refused before any run.
+        assert!(Perturb::new(1.0, None).is_err());
+        assert!(Perturb::new(f64::NAN, None).is_err());
+        let e = Perturb::new(0.1, Some("m_kg,mass"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mass") && e.contains("beta_e_pa"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

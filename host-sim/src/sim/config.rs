@@ -24,6 +24,8 @@
 //! e_span_m = 0.02           # ec_span_mps, dkp_max, dki_max, dkd_max, kp, ki, kd, ts_s
 //! [limits]
 //! v_max_mps = 0.1           # x_min_m, x_max_m, xo_plausible_m
+//! [model]                   # the design model: PlantParams keys (model::params)
+//! m_kg = 50.0
 //! ```
 //!
 //! A scenario file gives the duration, the reference (or an open-loop speed
@@ -51,6 +53,8 @@
 //! seed = 3
 //! [plant.effects.leakage]           # any effect of docs/model.md section 12
 //! g_m3pspa = 1e-13
+//! [plant.params]                    # the rig: PlantParams keys, [plant.params.hose]
+//! m_kg = 55.0
 //! ```
 //!
 //! Errors name the file, the line and the field.
@@ -59,10 +63,12 @@ use std::path::Path;
 
 use dca_app::settings::{self, Param, ParamKind};
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use dca_core::params::PlantParams;
 use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::model::params::{ParamsError, ParamsToml};
 use crate::model::scenario::{Command, Piecewise, PiecewiseError, Scenario, Signal};
 
 /// An error in a TOML file: file, line, field, message.
@@ -126,6 +132,47 @@ fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> Result<T, File
     })
 }
 
+/// A parameter table's error as a file error: the line of the value, the
+/// key under `prefix` (`plant.params.`, `controller.model.`, `model.` or none).
+fn params_error(text: &str, file: &str, prefix: &str, e: ParamsError) -> FileError {
+    FileError {
+        file: file.to_string(),
+        line: e.span.map(|s| line_of(text, s.start)),
+        field: Some(format!("{prefix}{}", e.key)),
+        message: e.message,
+    }
+}
+
+/// Check a parameter table read from `text` (see [`params_error`]).
+fn check_params(
+    t: Option<&ParamsToml>,
+    text: &str,
+    file: &str,
+    prefix: &str,
+) -> Result<(), FileError> {
+    match t {
+        Some(t) => t
+            .params()
+            .map(|_| ())
+            .map_err(|e| params_error(text, file, prefix, e)),
+        None => Ok(()),
+    }
+}
+
+/// A rig's physical parameters from TOML text: the keys of
+/// [`dca_core::params::PlantParams`] at top level and `[hose]`
+/// ([`crate::model::params`]); every key not given is nominal.
+pub fn plant_params_str(text: &str, file: &str) -> Result<PlantParams, FileError> {
+    let t: ParamsToml = parse(text, file)?;
+    t.params().map_err(|e| params_error(text, file, "", e))
+}
+
+/// A rig's physical parameters from a file (`--plant FILE.toml`), as
+/// [`plant_params_str`].
+pub fn read_plant_file(path: &Path) -> Result<PlantParams, FileError> {
+    plant_params_str(&read(path)?, &path.display().to_string())
+}
+
 fn read(path: &Path) -> Result<String, FileError> {
     std::fs::read_to_string(path).map_err(|e| FileError {
         file: path.display().to_string(),
@@ -153,6 +200,9 @@ pub struct ConfigFile {
     pub controller: Option<String>,
     /// The parameters set, as (path, value as stored), in file order.
     pub params: Vec<(&'static str, f64)>,
+    /// The controller's design model (`[model]`; in a scenario file
+    /// `[controller.model]`): plant parameters by key, nominal if absent.
+    pub model: Option<ParamsToml>,
 }
 
 /// Why a controller parameter given by path (in a file or a sweep) was
@@ -247,6 +297,7 @@ pub fn set_param(cfg: &mut ControllerConfig, path: &str, v: f64) -> Result<(), P
 enum FileKey {
     Preset,
     Controller,
+    Model,
     Table(&'static str),
 }
 
@@ -272,10 +323,11 @@ impl Visitor<'_> for FileKeySeed {
         match v {
             "preset" => Ok(FileKey::Preset),
             "controller" => Ok(FileKey::Controller),
+            "model" => Ok(FileKey::Model),
             _ => match settings::CONTROLLER_TABLES.iter().find(|t| **t == v) {
                 Some(t) => Ok(FileKey::Table(t)),
                 None => Err(E::custom(format!(
-                    "unknown field `{v}`, expected one of `preset`, `controller`, {}",
+                    "unknown field `{v}`, expected one of `preset`, `controller`, `model`, {}",
                     settings::CONTROLLER_TABLES
                         .map(|t| format!("`{t}`"))
                         .join(", ")
@@ -409,6 +461,7 @@ impl<'de> Visitor<'de> for FileVisitor {
             match key {
                 FileKey::Preset => file.preset = Some(map.next_value()?),
                 FileKey::Controller => file.controller = Some(map.next_value()?),
+                FileKey::Model => file.model = Some(map.next_value()?),
                 FileKey::Table(table) => map.next_value_seed(TableSeed {
                     table,
                     out: &mut file.params,
@@ -433,7 +486,23 @@ impl ConfigFile {
 
     /// Parse configuration text; `file` names it in errors.
     pub fn parse_str(text: &str, file: &str) -> Result<Self, FileError> {
-        parse(text, file)
+        let c: Self = parse(text, file)?;
+        check_params(c.model.as_ref(), text, file, "model.")?;
+        Ok(c)
+    }
+
+    /// The controller's design model: the nominal plant with the `[model]`
+    /// table's values.
+    pub fn model(&self, file: &str) -> Result<PlantParams, FileError> {
+        match &self.model {
+            None => Ok(PlantParams::NOMINAL),
+            Some(t) => t.params().map_err(|e| FileError {
+                file: file.to_string(),
+                line: None,
+                field: Some(format!("model.{}", e.key)),
+                message: e.message,
+            }),
+        }
     }
 
     /// The preset named in the file (default `paper`).
@@ -475,6 +544,9 @@ impl ConfigFile {
     /// The full configuration for `kind`: the file's preset with its parameters.
     pub fn resolve(&self, kind: ControllerKind, file: &str) -> Result<ControllerConfig, FileError> {
         let mut cfg = ControllerConfig::preset(self.preset(file)?, kind);
+        if self.model.is_some() {
+            cfg.plant = self.model(file)?;
+        }
         self.apply(&mut cfg).map_err(|e| FileError {
             file: file.to_string(),
             line: None,
@@ -645,6 +717,24 @@ pub struct PlantSection {
     pub dt_s: Option<f64>,
     /// Unmodelled effects, e.g. `[plant.effects.leakage] g_m3pspa = 1e-13`.
     pub effects: Option<crate::model::effects::Effects>,
+    /// The rig's physical parameters, e.g. `[plant.params] m_kg = 55.0`
+    /// (nominal where not given; checked by [`ScenarioFile::load_str`]).
+    pub params: Option<ParamsToml>,
+}
+
+impl PlantSection {
+    /// The rig's parameters: nominal with the `[plant.params]` values.
+    pub fn plant_params(&self, file: &str) -> Result<PlantParams, FileError> {
+        match &self.params {
+            None => Ok(PlantParams::NOMINAL),
+            Some(t) => t.params().map_err(|e| FileError {
+                file: file.to_string(),
+                line: None,
+                field: Some(format!("plant.params.{}", e.key)),
+                message: e.message,
+            }),
+        }
+    }
 }
 
 /// A scenario file.
@@ -755,6 +845,10 @@ impl ScenarioFile {
         if let Some(c) = &f.controller {
             c.preset(file)?;
             c.kind(file)?;
+            check_params(c.model.as_ref(), text, file, "controller.model.")?;
+        }
+        if let Some(p) = &f.plant {
+            check_params(p.params.as_ref(), text, file, "plant.params.")?;
         }
         Ok(LoadedScenario {
             scenario: Scenario::new(
@@ -925,6 +1019,103 @@ preset = "fast"
         }
         let ok = format!("{head}type = \"ramp\"\nstart = 1e300\nslope_per_s = 1e300\n");
         assert!(ScenarioFile::load_str(&ok, "s.toml", "s").is_ok());
+    }
+
+    /// The rig's parameters (`[plant.params]`, `--plant`) and the controller's
+    /// design model (`[controller.model]`, `[model]`): unknown keys and
+    /// non-physical values are errors naming the file, the line and the key.
+    #[test]
+    fn plant_params_and_design_model() {
+        let head = "duration_s = 5.0\n[reference]\ntype = \"constant\"\nvalue = 0.05\n";
+        let ok = format!(
+            "{head}[controller]\ncontroller = \"mpc\"\n[controller.model]\nm_kg = 60.0\n\
+             [plant.params]\nm_kg = 55\n[plant.params.hose]\nps_pa = 2e6\n"
+        );
+        let s = ScenarioFile::load_str(&ok, "s.toml", "s").unwrap();
+        let rig = s.plant.plant_params("s.toml").unwrap();
+        assert_eq!((rig.m_kg, rig.hose.ps_pa), (55.0, 2e6));
+        let c = s.controller.unwrap();
+        let cfg = c.resolve(ControllerKind::Mpc, "s.toml").unwrap();
+        assert_eq!(cfg.plant.m_kg, 60.0);
+        assert_eq!(cfg.plant.beta_e_pa, PlantParams::NOMINAL.beta_e_pa);
+        // Without a model the design model is the nominal plant.
+        let c = ConfigFile::parse_str("[mpc]\nrw = 50.0\n", "c.toml").unwrap();
+        let cfg = c.resolve(ControllerKind::Mpc, "c.toml").unwrap();
+        assert_eq!(cfg.plant, PlantParams::NOMINAL);
+        for (tail, line, field, what) in [
+            ("[plant.params]\nm_gk = 1.0\n", 6, "m_gk", "unknown field"),
+            (
+                "[plant.params]\nm_kg = 1.0\nbeta_e_pa = -1e9\n",
+                7,
+                "plant.params.beta_e_pa",
+                "> 0",
+            ),
+            (
+                "[plant.params]\nx_max_m = 0.2\nx_min_m = 0.3\n",
+                7,
+                "plant.params.x_min_m",
+                "below",
+            ),
+            (
+                "[plant.params.hose]\ntau_s_s = 0\n",
+                6,
+                "plant.params.hose.tau_s_s",
+                "> 0",
+            ),
+            (
+                "[plant.params.hose]\nbeta = 0\n",
+                6,
+                "beta",
+                "unknown field",
+            ),
+            (
+                "[controller.model]\n\nn_poly = inf\n",
+                7,
+                "controller.model.n_poly",
+                "finite",
+            ),
+            (
+                "[controller.model]\nm_kg = \"x\"\n",
+                6,
+                "controller.model.m_kg",
+                "a number",
+            ),
+        ] {
+            let text = format!("{head}{tail}");
+            let e = ScenarioFile::load_str(&text, "s.toml", "s").unwrap_err();
+            assert_eq!(
+                (e.line, e.field.as_deref()),
+                (Some(line), Some(field)),
+                "{tail}: {e}"
+            );
+            assert!(e.message.contains(what), "{tail}: {e}");
+            assert!(
+                e.to_string().starts_with(&format!("s.toml:{line}: ")),
+                "{e}"
+            );
+        }
+        // A configuration file's [model]; a --plant file at top level.
+        let e = ConfigFile::parse_str("preset = \"fast\"\n[model]\nv_dead_m3 = 0.0\n", "c.toml")
+            .unwrap_err();
+        assert_eq!(
+            (e.line, e.field.as_deref()),
+            (Some(3), Some("model.v_dead_m3")),
+            "{e}"
+        );
+        let p = plant_params_str("m_kg = 52.5\n[hose]\ncs0_m3pp = 5e-13\n", "p.toml").unwrap();
+        assert_eq!((p.m_kg, p.hose.cs0_m3pp), (52.5, 5e-13));
+        for (text, line, field) in [
+            ("m_kg = 50.0\nmass_kg = 1.0\n", 2, "mass_kg"),
+            ("m_kg = 50.0\n\np_acc0_pa = -1e6\n", 3, "p_acc0_pa"),
+            ("[plant]\nm_kg = 1.0\n", 1, "plant"),
+        ] {
+            let e = plant_params_str(text, "p.toml").unwrap_err();
+            assert_eq!(
+                (e.line, e.field.as_deref()),
+                (Some(line), Some(field)),
+                "{text}: {e}"
+            );
+        }
     }
 
     /// Found by fuzzing: a file ending where a value is due gave an error

@@ -10,10 +10,11 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
 use crate::io::runlog::LogError;
 use crate::model::effects::EffectError;
+use crate::model::params;
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::model::scenario::{Command, Scenario, Signal};
 use crate::model::sensors::SensorMode;
-use crate::sim::config::{ConfigFile, FileError, ScenarioFile};
+use crate::sim::config::{read_plant_file, ConfigFile, FileError, ScenarioFile};
 use crate::sim::metrics::{self, Kind, Metrics};
 use crate::sim::{run, RunSpec, SimError, Trace};
 
@@ -36,6 +37,9 @@ pub struct RunRequest {
     pub dt_s: Option<f64>,
     /// Effects, `name` or `name:param=value,...` (added to the scenario file's).
     pub effects: Vec<String>,
+    /// A TOML file of the rig's physical parameters (`--plant`; it replaces
+    /// the scenario file's `[plant.params]`; default: nominal).
+    pub plant: Option<String>,
 }
 
 /// Why a request could not be resolved or run.
@@ -125,6 +129,10 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         (None, Some(c)) => c.resolve(kind, file)?,
         (None, None) => ControllerConfig::preset(Preset::Paper, kind),
     };
+    let rig = match &req.plant {
+        Some(path) => read_plant_file(Path::new(path))?,
+        None => plant_sec.plant_params(file)?,
+    };
     let hose_name = req
         .hose
         .clone()
@@ -159,7 +167,7 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
     Ok(RunSpec {
         scenario,
         controller,
-        plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
+        plant: Plant::new(rig, hose),
         effects,
         sensors,
         seed: req.seed.or(plant_sec.seed).unwrap_or(0),
@@ -169,6 +177,16 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
 
 /// The metadata lines a simulated run's log carries.
 pub fn log_meta(spec: &RunSpec) -> Vec<(&'static str, String)> {
+    log_meta_with(spec, &[])
+}
+
+/// The metadata lines of a run's log, with `plant.<key>=<value>` for every
+/// rig parameter off its nominal value or in `drawn`, and `model.<key>=<value>`
+/// for every parameter of the controller's design model off its nominal value.
+pub fn log_meta_with(
+    spec: &RunSpec,
+    drawn: &[&'static params::ParamKey],
+) -> Vec<(&'static str, String)> {
     let effects: Vec<String> = spec
         .effects
         .active()
@@ -197,8 +215,15 @@ pub fn log_meta(spec: &RunSpec) -> Vec<(&'static str, String)> {
         ("sensors", spec.sensors.name().to_string()),
         ("seed", spec.seed.to_string()),
         ("dt_s", spec.dt_s.to_string()),
-        ("source", format!("host-sim {}", env!("CARGO_PKG_VERSION"))),
     ]
+    .into_iter()
+    .chain(params::columns(spec.plant.params(), drawn, false))
+    .chain(params::columns(&spec.controller.plant, &[], true))
+    .chain(std::iter::once((
+        "source",
+        format!("host-sim {}", env!("CARGO_PKG_VERSION")),
+    )))
+    .collect()
 }
 
 /// Section 8 metrics of a trace, choosing the metric set from its scenario.
@@ -318,5 +343,50 @@ mod tests {
             let e = resolve(&r).unwrap_err().to_string();
             assert!(e.contains(what), "{e}");
         }
+    }
+
+    /// `--plant FILE` sets the rig (replacing the scenario file's
+    /// `[plant.params]`); the log names every parameter off nominal; without
+    /// it the rig is nominal and the log has no such lines.
+    #[test]
+    fn plant_file_sets_the_rig() {
+        let dir = std::env::temp_dir().join(format!("dca-plant-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let plant = dir.join("rig.toml");
+        std::fs::write(&plant, "m_kg = 60.0\n[hose]\nps_pa = 2e6\n").unwrap();
+        let spec = resolve(&req("step")).unwrap();
+        assert_eq!(*spec.plant.params(), dca_core::params::PlantParams::NOMINAL);
+        assert!(!log_meta(&spec).iter().any(|(k, _)| k.starts_with("plant.")));
+        let spec = resolve(&RunRequest {
+            plant: Some(plant.display().to_string()),
+            ..req("step")
+        })
+        .unwrap();
+        assert_eq!(spec.plant.params().m_kg, 60.0);
+        assert_eq!(
+            spec.controller.plant,
+            dca_core::params::PlantParams::NOMINAL
+        );
+        let meta = log_meta(&spec);
+        let plant_meta: Vec<_> = meta
+            .iter()
+            .filter(|(k, _)| k.starts_with("plant."))
+            .collect();
+        assert_eq!(
+            plant_meta,
+            [
+                &("plant.m_kg", "6e1".to_string()),
+                &("plant.hose.ps_pa", "2e6".to_string())
+            ]
+        );
+        std::fs::write(&plant, "m_kg = 60.0\nbeta_e_pa = 0\n").unwrap();
+        let e = resolve(&RunRequest {
+            plant: Some(plant.display().to_string()),
+            ..req("step")
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("rig.toml:2: field 'beta_e_pa'"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -6,6 +6,8 @@
 //! * [`gains`]: the MPC design of docs/model.md section 6.3 as JSON;
 //! * [`grnn`]: the hose-model studies (GRNN, RBF and BP on the hose data, the
 //!   memory GRNN held out run by run, the closed-loop hose comparison);
+//! * [`montecarlo`]: the report of a sweep (Monte Carlo over the rig): histograms,
+//!   unstable and diverged runs;
 //! * [`mod@bench`]: speed of the simulator and of the diagnosis.
 //!
 //! May import from [`crate::io`], [`crate::model`], [`crate::sim`], its own
@@ -14,4 +16,5 @@
 pub mod bench;
 pub mod gains;
 pub mod grnn;
+pub mod montecarlo;
 pub mod paper;

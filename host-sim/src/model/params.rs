@@ -1,0 +1,608 @@
+//! The rig's physical parameters ([`PlantParams`]) by key: read from TOML,
+//! checked for physical sense, and drawn at random for Monte Carlo runs
+//! (docs/interfaces.md section 6).
+//!
+//! The keys are the field names of [`PlantParams`] (SI, units in the names);
+//! the hose wall ([`dca_core::params::HoseParams`]) is a nested table
+//! `[hose]`, its keys written `hose.<field>` in errors, CSV columns and
+//! run-log metadata:
+//!
+//! ```toml
+//! m_kg = 55.0
+//! beta_e_pa = 1.0e9
+//! [hose]
+//! cs0_m3pp = 6.0e-13
+//! ```
+//!
+//! Every key not given keeps its nominal value (docs/model.md section 3).
+//! Reading ([`ParamsToml`]) only records the keys, their values and where
+//! they are; [`ParamsToml::params`] then checks the values, so that the
+//! caller, who holds the text, can name the line of a wrong value.
+
+use std::ops::Range;
+
+use dca_core::params::PlantParams;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+
+/// What a parameter's value must be to be physical.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bound {
+    /// Finite and > 0.
+    Positive,
+    /// Finite and >= 0.
+    NonNegative,
+    /// Finite.
+    Finite,
+}
+
+impl Bound {
+    fn check(self, v: f64) -> Result<(), &'static str> {
+        match self {
+            _ if !v.is_finite() => Err("must be finite"),
+            Self::Positive if v <= 0.0 => Err("must be > 0"),
+            Self::NonNegative if v < 0.0 => Err("must be >= 0"),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// One parameter of [`PlantParams`] by key.
+#[derive(Debug)]
+pub struct ParamKey {
+    /// The key: the field name, `hose.<field>` for the hose wall.
+    pub name: &'static str,
+    /// Its CSV column and run-log metadata key for the rig: `plant.<name>`.
+    pub column: &'static str,
+    /// Its run-log metadata key for the controller's design model: `model.<name>`.
+    pub model_column: &'static str,
+    /// What its value must be.
+    pub bound: Bound,
+    /// Whether `sweep --perturb` draws it by default: a property of the rig
+    /// that a built rig can have off its nominal value (not the atmosphere,
+    /// not the stroke limits, not the prediction model's linearisation point).
+    pub physical: bool,
+    get: fn(&PlantParams) -> f64,
+    set: fn(&mut PlantParams, f64),
+}
+
+/// Keys are equal when their names are (each name is one field).
+impl PartialEq for ParamKey {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for ParamKey {}
+
+impl ParamKey {
+    /// The value of this parameter in `p`.
+    pub fn get(&self, p: &PlantParams) -> f64 {
+        (self.get)(p)
+    }
+
+    /// Set this parameter of `p` to `v` (unchecked).
+    pub fn set(&self, p: &mut PlantParams, v: f64) {
+        (self.set)(p, v)
+    }
+
+    /// Whether this is a key of the `[hose]` table.
+    pub fn is_hose(&self) -> bool {
+        self.name.starts_with("hose.")
+    }
+
+    /// The key within its table (`ce0_m3pp` for `hose.ce0_m3pp`).
+    pub fn field(&self) -> &'static str {
+        self.name.strip_prefix("hose.").unwrap_or(self.name)
+    }
+}
+
+macro_rules! key {
+    ($f:ident, $bound:ident, $physical:expr) => {
+        ParamKey {
+            name: stringify!($f),
+            column: concat!("plant.", stringify!($f)),
+            model_column: concat!("model.", stringify!($f)),
+            bound: Bound::$bound,
+            physical: $physical,
+            get: |p| p.$f,
+            set: |p, v| p.$f = v,
+        }
+    };
+    (hose $f:ident) => {
+        ParamKey {
+            name: concat!("hose.", stringify!($f)),
+            column: concat!("plant.hose.", stringify!($f)),
+            model_column: concat!("model.hose.", stringify!($f)),
+            bound: Bound::Positive,
+            physical: true,
+            get: |p| p.hose.$f,
+            set: |p, v| p.hose.$f = v,
+        }
+    };
+}
+
+/// Every parameter of [`PlantParams`], in the struct's order (the hose wall's
+/// after `c_stop_nspm`).
+pub static KEYS: [ParamKey; 29] = [
+    key!(m_kg, Positive, true),
+    key!(ap1_m2, Positive, true),
+    key!(ap2_m2, Positive, true),
+    key!(aa1_m2, Positive, true),
+    key!(aa2_m2, Positive, true),
+    key!(c_visc_nspm, NonNegative, true),
+    key!(hose_radius_m, Positive, true),
+    key!(hose_length_m, Positive, true),
+    key!(beta_e_pa, Positive, true),
+    key!(x_min_m, Finite, false),
+    key!(x_max_m, Finite, false),
+    key!(v_dead_m3, Positive, true),
+    key!(v_fit_m3, NonNegative, true),
+    key!(v_max_mps, Positive, true),
+    key!(tau_m_s, Positive, true),
+    key!(p_acc0_pa, Finite, true),
+    key!(v_gas0_m3, Positive, true),
+    key!(n_poly, Positive, true),
+    key!(p_atm_pa, Positive, false),
+    key!(g_acc_m3pspa, Positive, true),
+    key!(k_stop_npm, Positive, true),
+    key!(c_stop_nspm, NonNegative, true),
+    key!(hose ce0_m3pp),
+    key!(hose cf0_m3pp),
+    key!(hose tau_f_s),
+    key!(hose cs0_m3pp),
+    key!(hose tau_s_s),
+    key!(hose ps_pa),
+    key!(p_nom_pa, NonNegative, false),
+];
+
+/// The parameter with key `name` (`m_kg`, `hose.ps_pa`).
+pub fn find(name: &str) -> Option<&'static ParamKey> {
+    KEYS.iter().find(|k| k.name == name)
+}
+
+/// The keys `sweep --perturb` draws by default ([`ParamKey::physical`]).
+pub fn physical_keys() -> Vec<&'static ParamKey> {
+    KEYS.iter().filter(|k| k.physical).collect()
+}
+
+/// The keys of one table (top level, or `[hose]`), as "`a`, `b`, ...".
+fn keys_of(hose: bool) -> String {
+    let mut names: Vec<String> = KEYS
+        .iter()
+        .filter(|k| k.is_hose() == hose)
+        .map(|k| format!("`{}`", k.field()))
+        .collect();
+    if !hose {
+        names.push("`hose`".into());
+    }
+    names.join(", ")
+}
+
+/// Why a parameter set is not physical, or a key or value of a file is wrong.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct ParamsError {
+    /// The key at fault (`m_kg`, `hose.ps_pa`).
+    pub key: &'static str,
+    /// Where its value is in the file's text (byte offsets), when read from one.
+    pub span: Option<Range<usize>>,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// Check that `p` is physical: every value within its [`Bound`], the stroke
+/// `x_min_m < x_max_m` containing the initial position 0, and the
+/// accumulator's absolute precharge `p_acc0_pa + p_atm_pa` above 0.
+pub fn check(p: &PlantParams) -> Result<(), ParamsError> {
+    let fail = |key: &'static str, message: String| ParamsError {
+        key,
+        span: None,
+        message,
+    };
+    for k in &KEYS {
+        let v = k.get(p);
+        k.bound
+            .check(v)
+            .map_err(|why| fail(k.name, format!("{v}: {why}")))?;
+    }
+    if p.x_min_m >= p.x_max_m {
+        return Err(fail(
+            "x_max_m",
+            format!(
+                "x_min_m = {} must be below x_max_m = {}",
+                p.x_min_m, p.x_max_m
+            ),
+        ));
+    }
+    if !(p.x_min_m <= 0.0 && p.x_max_m >= 0.0) {
+        let key = if p.x_min_m > 0.0 {
+            "x_min_m"
+        } else {
+            "x_max_m"
+        };
+        return Err(fail(
+            key,
+            format!(
+                "the stroke [{}, {}] m must contain the initial position 0",
+                p.x_min_m, p.x_max_m
+            ),
+        ));
+    }
+    if p.p_acc0_pa + p.p_atm_pa <= 0.0 {
+        return Err(fail(
+            "p_acc0_pa",
+            format!(
+                "p_acc0_pa = {} is below vacuum (-p_atm_pa = {})",
+                p.p_acc0_pa, -p.p_atm_pa
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// One key of a file with its value as written and where the value is.
+#[derive(Clone, Debug, PartialEq)]
+struct Entry {
+    key: &'static ParamKey,
+    span: Range<usize>,
+    value: toml::Value,
+}
+
+/// A parameter table as read from TOML: the keys given, in file order, with
+/// their values and positions. [`ParamsToml::params`] checks them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParamsToml {
+    entries: Vec<Entry>,
+}
+
+impl ParamsToml {
+    /// Whether no key was given.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// The nominal parameters with the file's values; an error names the key
+    /// and, where there is one, the span of its value.
+    pub fn params(&self) -> Result<PlantParams, ParamsError> {
+        let mut p = PlantParams::NOMINAL;
+        for e in &self.entries {
+            let v = match &e.value {
+                toml::Value::Float(v) => *v,
+                toml::Value::Integer(i) => *i as f64,
+                other => {
+                    return Err(ParamsError {
+                        key: e.key.name,
+                        span: Some(e.span.clone()),
+                        message: format!(
+                            "invalid value for `{}`: expected a number, found a {}",
+                            e.key.name,
+                            other.type_str()
+                        ),
+                    })
+                }
+            };
+            e.key.set(&mut p, v);
+        }
+        check(&p).map_err(|mut err| {
+            // Point at the key's value; for a relation (the stroke, the
+            // precharge) at the last of its keys the file gave.
+            let related: &[&str] = match err.key {
+                "x_min_m" | "x_max_m" => &["x_min_m", "x_max_m"],
+                "p_acc0_pa" => &["p_acc0_pa", "p_atm_pa"],
+                _ => &[],
+            };
+            let hit = self.entries.iter().rev().find(|e| {
+                if related.is_empty() {
+                    e.key.name == err.key
+                } else {
+                    related.contains(&e.key.name)
+                }
+            });
+            if let Some(e) = hit {
+                err.key = e.key.name;
+                err.span = Some(e.span.clone());
+            }
+            err.message = format!("invalid value for `{}`: {}", err.key, err.message);
+            err
+        })?;
+        Ok(p)
+    }
+}
+
+/// Reads a key of the top-level table (`hose: false`) or of `[hose]`; an
+/// unknown one is an error at the key (its line).
+struct KeySeed {
+    hose: bool,
+}
+
+enum Key {
+    Param(&'static ParamKey),
+    Hose,
+}
+
+impl<'de> DeserializeSeed<'de> for KeySeed {
+    type Value = Key;
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<Key, D::Error> {
+        d.deserialize_str(self)
+    }
+}
+
+impl Visitor<'_> for KeySeed {
+    type Value = Key;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a plant parameter")
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<Key, E> {
+        if v == "hose" && !self.hose {
+            return Ok(Key::Hose);
+        }
+        KEYS.iter()
+            .find(|k| k.is_hose() == self.hose && k.field() == v)
+            .map(Key::Param)
+            .ok_or_else(|| {
+                E::custom(format!(
+                    "unknown field `{v}`, expected one of {}",
+                    keys_of(self.hose)
+                ))
+            })
+    }
+}
+
+/// Reads a table of parameters into `out`.
+struct TableSeed<'a> {
+    hose: bool,
+    out: &'a mut Vec<Entry>,
+}
+
+impl<'de> DeserializeSeed<'de> for TableSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for TableSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(if self.hose {
+            "the table [hose]"
+        } else {
+            "a table of plant parameters"
+        })
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        while let Some(key) = map.next_key_seed(KeySeed { hose: self.hose })? {
+            match key {
+                Key::Hose => map.next_value_seed(TableSeed {
+                    hose: true,
+                    out: &mut *self.out,
+                })?,
+                Key::Param(k) => {
+                    let v: Spanned<toml::Value> = map.next_value()?;
+                    self.out.push(Entry {
+                        key: k,
+                        span: v.span(),
+                        value: v.into_inner(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<'de> Deserialize<'de> for ParamsToml {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let mut entries = Vec::new();
+        TableSeed {
+            hose: false,
+            out: &mut entries,
+        }
+        .deserialize(d)?;
+        Ok(Self { entries })
+    }
+}
+
+/// The ChaCha stream of the parameter draws (the sensor noise of the same
+/// seed uses stream 0, so the two never share numbers).
+const DRAW_STREAM: u64 = 0x6463_615f_6d63; // "dca_mc"
+
+/// Draw a rig for Monte Carlo seed `seed`: each parameter of `keys`
+/// uniformly within `base * (1 +- fraction)`. One number is drawn for every
+/// key of [`KEYS`] in order, used or not, so a key's value depends only on
+/// the seed, the fraction and its base value, not on which other keys are
+/// drawn. Returns the rig and the drawn values in [`KEYS`] order.
+pub fn draw(
+    base: &PlantParams,
+    keys: &[&'static ParamKey],
+    fraction: f64,
+    seed: u64,
+) -> (PlantParams, Vec<(&'static ParamKey, f64)>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(DRAW_STREAM);
+    let mut p = *base;
+    let mut drawn = Vec::new();
+    for k in &KEYS {
+        let u: f64 = rng.random();
+        if keys.contains(&k) {
+            let v = k.get(base) * (1.0 + fraction * (2.0 * u - 1.0));
+            k.set(&mut p, v);
+            drawn.push((k, v));
+        }
+    }
+    (p, drawn)
+}
+
+/// The keys named in `list` (`k1,k2,...`; `hose.<field>` for the hose wall).
+pub fn parse_keys(list: &str) -> Result<Vec<&'static ParamKey>, String> {
+    let mut out: Vec<&'static ParamKey> = Vec::new();
+    for name in list.split(',').map(str::trim) {
+        let k = find(name).ok_or_else(|| {
+            format!(
+                "'{name}' is not a plant parameter; the keys are {}",
+                KEYS.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
+            )
+        })?;
+        if !out.contains(&k) {
+            out.push(k);
+        }
+    }
+    Ok(out)
+}
+
+/// `(column, value)` for every key whose value in `p` differs from the
+/// nominal one or that is in `always`, in [`KEYS`] order; the column is
+/// `plant.<key>` (`model: false`) or `model.<key>`. Values are written `{:e}`
+/// (shortest round trip).
+pub fn columns(
+    p: &PlantParams,
+    always: &[&'static ParamKey],
+    model: bool,
+) -> Vec<(&'static str, String)> {
+    KEYS.iter()
+        .filter(|k| {
+            k.get(p).to_bits() != k.get(&PlantParams::NOMINAL).to_bits() || always.contains(k)
+        })
+        .map(|k| {
+            (
+                if model { k.model_column } else { k.column },
+                format!("{:e}", k.get(p)),
+            )
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dca_core::params::HoseParams;
+
+    fn read(text: &str) -> Result<PlantParams, String> {
+        let t: ParamsToml = toml::from_str(text).map_err(|e| e.to_string())?;
+        t.params().map_err(|e| e.to_string())
+    }
+
+    /// Every field of `PlantParams` has exactly one key (a new field fails
+    /// to compile here until it is added to `KEYS`).
+    #[test]
+    fn every_field_is_a_key() {
+        let PlantParams {
+            m_kg: _,
+            ap1_m2: _,
+            ap2_m2: _,
+            aa1_m2: _,
+            aa2_m2: _,
+            c_visc_nspm: _,
+            hose_radius_m: _,
+            hose_length_m: _,
+            beta_e_pa: _,
+            x_min_m: _,
+            x_max_m: _,
+            v_dead_m3: _,
+            v_fit_m3: _,
+            v_max_mps: _,
+            tau_m_s: _,
+            p_acc0_pa: _,
+            v_gas0_m3: _,
+            n_poly: _,
+            p_atm_pa: _,
+            g_acc_m3pspa: _,
+            k_stop_npm: _,
+            c_stop_nspm: _,
+            hose:
+                HoseParams {
+                    ce0_m3pp: _,
+                    cf0_m3pp: _,
+                    tau_f_s: _,
+                    cs0_m3pp: _,
+                    tau_s_s: _,
+                    ps_pa: _,
+                },
+            p_nom_pa: _,
+        } = PlantParams::NOMINAL;
+        // 23 + 6 fields; each key sets its own field and no other.
+        assert_eq!(KEYS.len(), 29);
+        for (i, k) in KEYS.iter().enumerate() {
+            let mut p = PlantParams::NOMINAL;
+            let v = k.get(&p) * 1.5 + 1e-3;
+            k.set(&mut p, v);
+            for (j, o) in KEYS.iter().enumerate() {
+                let changed = o.get(&p).to_bits() != o.get(&PlantParams::NOMINAL).to_bits();
+                assert_eq!(changed, i == j, "{} changed {}", k.name, o.name);
+            }
+        }
+        check(&PlantParams::NOMINAL).unwrap();
+    }
+
+    #[test]
+    fn keys_and_hose_table() {
+        let p = read("m_kg = 60\nbeta_e_pa = 1.0e9\n[hose]\nps_pa = 2e6\n").unwrap();
+        assert_eq!(p.m_kg, 60.0);
+        assert_eq!(p.beta_e_pa, 1.0e9);
+        assert_eq!(p.hose.ps_pa, 2e6);
+        assert_eq!(p.hose.ce0_m3pp, HoseParams::NOMINAL.ce0_m3pp);
+        assert_eq!(read("").unwrap(), PlantParams::NOMINAL);
+        for (text, what) in [
+            ("m_gk = 1.0\n", "m_gk"),
+            ("[hose]\nm_kg = 1.0\n", "m_kg"),
+            ("[hose]\n[hose.x]\n", "x"),
+            ("m_kg = -1.0\n", "must be > 0"),
+            ("m_kg = nan\n", "must be finite"),
+            ("m_kg = \"heavy\"\n", "expected a number"),
+            ("x_min_m = 0.2\n", "x_min_m"),
+            ("x_max_m = -0.02\n", "x_max_m"),
+            ("p_acc0_pa = -2e5\n", "vacuum"),
+        ] {
+            let e = read(text).unwrap_err();
+            assert!(e.contains(what), "{text:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn draws_are_within_bounds_deterministic_and_per_seed() {
+        let keys = physical_keys();
+        assert!(!keys
+            .iter()
+            .any(|k| k.name == "p_atm_pa" || k.name == "x_min_m"));
+        let base = PlantParams::NOMINAL;
+        let (a, da) = draw(&base, &keys, 0.2, 7);
+        let (b, _) = draw(&base, &keys, 0.2, 7);
+        let (c, _) = draw(&base, &keys, 0.2, 8);
+        assert_eq!(a, b);
+        assert_eq!(da.len(), keys.len());
+        for (k, v) in &da {
+            let v0 = k.get(&base);
+            assert!(
+                (v - v0).abs() <= 0.2 * v0.abs() * (1.0 + 1e-12),
+                "{}",
+                k.name
+            );
+            assert_ne!(
+                v.to_bits(),
+                k.get(&c).to_bits(),
+                "{} same for two seeds",
+                k.name
+            );
+            assert_eq!(k.get(&a).to_bits(), v.to_bits());
+        }
+        check(&a).unwrap();
+        // Unlisted keys stay nominal; a key's draw does not depend on the others.
+        let m = find("m_kg").unwrap();
+        let (only_m, d) = draw(&base, &[m], 0.2, 7);
+        assert_eq!(d.len(), 1);
+        assert_eq!(only_m.m_kg, a.m_kg);
+        assert_eq!(only_m.beta_e_pa, base.beta_e_pa);
+        assert_eq!(parse_keys("m_kg, hose.ps_pa,m_kg").unwrap().len(), 2);
+        assert!(parse_keys("mass").unwrap_err().contains("m_kg"));
+    }
+}
