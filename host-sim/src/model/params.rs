@@ -443,15 +443,23 @@ pub fn draw(
     (p, drawn)
 }
 
+/// A name in `--perturb-keys` that is no plant parameter.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("'{name}' is not a plant parameter; the keys are {keys}")]
+pub struct UnknownKey {
+    /// The name as given.
+    pub name: String,
+    /// Every key, comma-separated.
+    pub keys: String,
+}
+
 /// The keys named in `list` (`k1,k2,...`; `hose.<field>` for the hose wall).
-pub fn parse_keys(list: &str) -> Result<Vec<&'static ParamKey>, String> {
+pub fn parse_keys(list: &str) -> Result<Vec<&'static ParamKey>, UnknownKey> {
     let mut out: Vec<&'static ParamKey> = Vec::new();
     for name in list.split(',').map(str::trim) {
-        let k = find(name).ok_or_else(|| {
-            format!(
-                "'{name}' is not a plant parameter; the keys are {}",
-                KEYS.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
-            )
+        let k = find(name).ok_or_else(|| UnknownKey {
+            name: name.to_string(),
+            keys: KEYS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
         })?;
         if !out.contains(&k) {
             out.push(k);
@@ -603,6 +611,6 @@ mod tests {
         assert_eq!(only_m.m_kg, a.m_kg);
         assert_eq!(only_m.beta_e_pa, base.beta_e_pa);
         assert_eq!(parse_keys("m_kg, hose.ps_pa,m_kg").unwrap().len(), 2);
-        assert!(parse_keys("mass").unwrap_err().contains("m_kg"));
+        assert!(parse_keys("mass").unwrap_err().to_string().contains("m_kg"));
     }
 }
