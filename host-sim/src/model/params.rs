@@ -24,9 +24,11 @@ use std::ops::Range;
 use dca_core::params::PlantParams;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
+use serde::de::{DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
+
+use crate::io::toml_key::KeySeed;
 
 /// What a parameter's value must be to be physical.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -313,46 +315,21 @@ impl ParamsToml {
     }
 }
 
-/// Reads a key of the top-level table (`hose: false`) or of `[hose]`; an
-/// unknown one is an error at the key (its line).
-struct KeySeed {
-    hose: bool,
-}
-
+/// A key of the top-level table or of `[hose]`.
 enum Key {
     Param(&'static ParamKey),
     Hose,
 }
 
-impl<'de> DeserializeSeed<'de> for KeySeed {
-    type Value = Key;
-
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<Key, D::Error> {
-        d.deserialize_str(self)
+/// The key `v` of the top-level table (`hose: false`) or of `[hose]`.
+fn lookup_key(v: &str, hose: bool) -> Result<Key, String> {
+    if v == "hose" && !hose {
+        return Ok(Key::Hose);
     }
-}
-
-impl Visitor<'_> for KeySeed {
-    type Value = Key;
-
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str("a plant parameter")
-    }
-
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<Key, E> {
-        if v == "hose" && !self.hose {
-            return Ok(Key::Hose);
-        }
-        KEYS.iter()
-            .find(|k| k.is_hose() == self.hose && k.field() == v)
-            .map(Key::Param)
-            .ok_or_else(|| {
-                E::custom(format!(
-                    "unknown field `{v}`, expected one of {}",
-                    keys_of(self.hose)
-                ))
-            })
-    }
+    KEYS.iter()
+        .find(|k| k.is_hose() == hose && k.field() == v)
+        .map(Key::Param)
+        .ok_or_else(|| format!("unknown field `{v}`, expected one of {}", keys_of(hose)))
 }
 
 /// Reads a table of parameters into `out`.
@@ -381,7 +358,11 @@ impl<'de> Visitor<'de> for TableSeed<'_> {
     }
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        while let Some(key) = map.next_key_seed(KeySeed { hose: self.hose })? {
+        let hose = self.hose;
+        while let Some(key) = map.next_key_seed(KeySeed {
+            expecting: "a plant parameter",
+            lookup: |v: &str| lookup_key(v, hose),
+        })? {
             match key {
                 Key::Hose => map.next_value_seed(TableSeed {
                     hose: true,

@@ -68,6 +68,7 @@ use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::io::toml_key::KeySeed;
 use crate::model::params::{ParamsError, ParamsToml};
 use crate::model::scenario::{Command, Piecewise, PiecewiseError, Scenario, Signal};
 
@@ -301,71 +302,30 @@ enum FileKey {
     Table(&'static str),
 }
 
-/// Reads a top-level key; an unknown one is an error at the key (its line).
-struct FileKeySeed;
-
-impl<'de> DeserializeSeed<'de> for FileKeySeed {
-    type Value = FileKey;
-
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<FileKey, D::Error> {
-        d.deserialize_str(self)
+/// The top-level key `v` of a configuration file.
+fn file_key(v: &str) -> Result<FileKey, String> {
+    match v {
+        "preset" => Ok(FileKey::Preset),
+        "controller" => Ok(FileKey::Controller),
+        "model" => Ok(FileKey::Model),
+        _ => match settings::CONTROLLER_TABLES.iter().find(|t| **t == v) {
+            Some(t) => Ok(FileKey::Table(t)),
+            None => Err(format!(
+                "unknown field `{v}`, expected one of `preset`, `controller`, `model`, {}",
+                settings::CONTROLLER_TABLES
+                    .map(|t| format!("`{t}`"))
+                    .join(", ")
+            )),
+        },
     }
 }
 
-impl Visitor<'_> for FileKeySeed {
-    type Value = FileKey;
-
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str("a key of a controller configuration")
-    }
-
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<FileKey, E> {
-        match v {
-            "preset" => Ok(FileKey::Preset),
-            "controller" => Ok(FileKey::Controller),
-            "model" => Ok(FileKey::Model),
-            _ => match settings::CONTROLLER_TABLES.iter().find(|t| **t == v) {
-                Some(t) => Ok(FileKey::Table(t)),
-                None => Err(E::custom(format!(
-                    "unknown field `{v}`, expected one of `preset`, `controller`, `model`, {}",
-                    settings::CONTROLLER_TABLES
-                        .map(|t| format!("`{t}`"))
-                        .join(", ")
-                ))),
-            },
-        }
-    }
-}
-
-/// Reads a key of a parameter table.
-struct ParamKeySeed(&'static str);
-
-impl<'de> DeserializeSeed<'de> for ParamKeySeed {
-    type Value = &'static Param;
-
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<&'static Param, D::Error> {
-        d.deserialize_str(self)
-    }
-}
-
-impl Visitor<'_> for ParamKeySeed {
-    type Value = &'static Param;
-
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        write!(f, "a key of [{}]", self.0)
-    }
-
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<&'static Param, E> {
-        settings::PARAMS
-            .iter()
-            .find(|p| p.table() == self.0 && p.key() == v)
-            .ok_or_else(|| {
-                E::custom(format!(
-                    "unknown field `{v}`, expected one of {}",
-                    keys_of(self.0)
-                ))
-            })
-    }
+/// The key `v` of the parameter table `table`.
+fn param_key(table: &str, v: &str) -> Result<&'static Param, String> {
+    settings::PARAMS
+        .iter()
+        .find(|p| p.table() == table && p.key() == v)
+        .ok_or_else(|| format!("unknown field `{v}`, expected one of {}", keys_of(table)))
 }
 
 /// Reads a parameter's value (a TOML integer or float; a flag may also be a
@@ -438,7 +398,11 @@ impl<'de> Visitor<'de> for TableSeed<'_> {
     }
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        while let Some(p) = map.next_key_seed(ParamKeySeed(self.table))? {
+        let table = self.table;
+        while let Some(p) = map.next_key_seed(KeySeed {
+            expecting: "a key of a controller parameter table",
+            lookup: |v: &str| param_key(table, v),
+        })? {
             let v = map.next_value_seed(ValueSeed(p))?;
             self.out.push((p.name, v));
         }
@@ -457,7 +421,10 @@ impl<'de> Visitor<'de> for FileVisitor {
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ConfigFile, A::Error> {
         let mut file = ConfigFile::default();
-        while let Some(key) = map.next_key_seed(FileKeySeed)? {
+        while let Some(key) = map.next_key_seed(KeySeed {
+            expecting: "a key of a controller configuration",
+            lookup: file_key,
+        })? {
             match key {
                 FileKey::Preset => file.preset = Some(map.next_value()?),
                 FileKey::Controller => file.controller = Some(map.next_value()?),
