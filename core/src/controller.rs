@@ -19,6 +19,7 @@
 //! starts at the measured Xi and the ESO's z1 and the TD's v1 at the measured
 //! Xo (all zero in the scenarios of docs/model.md, which start at rest at 0).
 
+use crate::cmpc::{Cmpc, CmpcGains, CmpcInput, CmpcParams};
 use crate::design::{DesignError, MpcParams};
 use crate::eso::{EsoError, EsoFixed, EsoFixedGains, EsoParams};
 use crate::fuzzy::{FuzzyParams, FuzzyPid};
@@ -39,11 +40,22 @@ pub enum ControllerKind {
     Pid,
     /// PID with Mamdani fuzzy gain scheduling.
     FuzzyPid,
+    /// MPC-ESO whose moves solve the constrained quadratic program (speed,
+    /// acceleration and stroke), with load feedforward and reference preview
+    /// ([`crate::cmpc`]; beyond the paper).
+    CmpcEso,
 }
 
 impl ControllerKind {
-    /// All kinds, in the order the paper compares them.
-    pub const ALL: [Self; 4] = [Self::MpcEso, Self::Mpc, Self::Pid, Self::FuzzyPid];
+    /// All kinds: the paper's comparison in its order, then the project's
+    /// constrained MPC-ESO.
+    pub const ALL: [Self; 5] = [
+        Self::MpcEso,
+        Self::Mpc,
+        Self::Pid,
+        Self::FuzzyPid,
+        Self::CmpcEso,
+    ];
 
     /// The command-line and log name (`mpc-eso`, `mpc`, `pid`, `fuzzy-pid`).
     pub fn name(self) -> &'static str {
@@ -52,6 +64,7 @@ impl ControllerKind {
             Self::Mpc => "mpc",
             Self::Pid => "pid",
             Self::FuzzyPid => "fuzzy-pid",
+            Self::CmpcEso => "cmpc-eso",
         }
     }
 
@@ -68,17 +81,21 @@ pub enum Preset {
     Paper,
     /// docs/model.md section 10: Ts = 0.01 s, h = 0.001 s, r_w = 300.
     Fast,
+    /// "fast", with the constrained MPC-ESO tuned for the rig at its limits
+    /// ([`CmpcParams::LIMIT`]; docs/interfaces.md section 7).
+    Limit,
 }
 
 impl Preset {
-    /// Both presets.
-    pub const ALL: [Self; 2] = [Self::Paper, Self::Fast];
+    /// Every preset.
+    pub const ALL: [Self; 3] = [Self::Paper, Self::Fast, Self::Limit];
 
-    /// `paper` or `fast`.
+    /// `paper`, `fast` or `limit`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Paper => "paper",
             Self::Fast => "fast",
+            Self::Limit => "limit",
         }
     }
 
@@ -101,6 +118,8 @@ pub struct ControllerConfig {
     pub mpc: MpcParams,
     /// MPC-ESO design.
     pub mpc_eso: MpcParams,
+    /// Constrained MPC-ESO design.
+    pub cmpc: CmpcParams,
     /// Observer.
     pub eso: EsoParams,
     /// Tracking differentiator (its `h_s` is the ESO's step).
@@ -135,6 +154,7 @@ impl ControllerConfig {
                 ts_s: 0.1,
                 rw: 33.0,
             },
+            cmpc: CmpcParams::LIMIT,
             eso: EsoParams::PAPER,
             td: TdParams::PAPER,
             pid: PidParams::PAPER,
@@ -142,7 +162,7 @@ impl ControllerConfig {
             limits: Limits::from_plant(&plant),
             xo_plausible_m: 1.0,
         };
-        if preset == Preset::Fast {
+        if preset != Preset::Paper {
             for m in [&mut cfg.mpc, &mut cfg.mpc_eso] {
                 m.ts_s = 0.01;
                 m.rw = 300.0;
@@ -155,7 +175,8 @@ impl ControllerConfig {
         cfg
     }
 
-    /// The MPC parameters of the selected kind (plain or ESO variant).
+    /// The MPC parameters of the selected kind (plain or ESO variant; the
+    /// constrained MPC-ESO's own are [`Self::cmpc`]).
     pub fn active_mpc(&self) -> MpcParams {
         match self.kind {
             ControllerKind::Mpc => self.mpc,
@@ -250,6 +271,9 @@ pub struct Output {
     pub flags: Flags,
 }
 
+// No allocation in the core: the largest law (the constrained MPC-ESO's
+// gains, ~0.5 KB) sets the size of every controller value, by design.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug)]
 enum Law {
     MpcEso {
@@ -272,6 +296,13 @@ enum Law {
     Fuzzy {
         params: FuzzyParams,
         fuzzy: FuzzyPid,
+    },
+    CmpcEso {
+        gains: CmpcGains,
+        eso_gains: EsoFixedGains,
+        b0: f32,
+        cmpc: Cmpc,
+        eso: EsoFixed,
     },
 }
 
@@ -354,6 +385,20 @@ impl Controller {
                 };
                 (law, ticks(cfg.mpc_eso.ts_s, cfg.base_dt_s)?)
             }
+            ControllerKind::CmpcEso => {
+                let gains = CmpcGains::design(&cfg.plant, cfg.cmpc, &cfg.limits)
+                    .map_err(ConfigError::Design)?;
+                let eso_gains = EsoFixedGains::new(&cfg.eso).map_err(ConfigError::Eso)?;
+                n_h = ticks(cfg.eso.h_s, cfg.base_dt_s)?;
+                let law = Law::CmpcEso {
+                    gains,
+                    eso_gains,
+                    b0: cfg.eso.b0 as f32,
+                    cmpc: Cmpc::new(0.0),
+                    eso: EsoFixed::default(),
+                };
+                (law, ticks(cfg.cmpc.ts_s, cfg.base_dt_s)?)
+            }
             ControllerKind::Mpc => {
                 let gains = MpcGains::design(&cfg.plant, cfg.mpc).map_err(ConfigError::Design)?;
                 let law = Law::Mpc {
@@ -421,16 +466,13 @@ impl Controller {
 
     /// The ESO state `[z1 m, z2 m/s, z3 m/s^2]` (MPC-ESO only).
     pub fn eso_estimates(&self) -> Option<[f32; 3]> {
-        match &self.law {
-            Law::MpcEso { eso, .. } => Some(eso.to_f32()),
-            _ => None,
-        }
+        self.eso_state().map(|e| e.to_f32())
     }
 
-    /// The raw fixed-point ESO state (MPC-ESO only).
+    /// The raw fixed-point ESO state (MPC-ESO and constrained MPC-ESO only).
     pub fn eso_state(&self) -> Option<EsoFixed> {
         match &self.law {
-            Law::MpcEso { eso, .. } => Some(*eso),
+            Law::MpcEso { eso, .. } | Law::CmpcEso { eso, .. } => Some(*eso),
             _ => None,
         }
     }
@@ -449,6 +491,7 @@ impl Controller {
             Law::MpcEso { mpc, .. } | Law::Mpc { mpc, .. } => mpc.u_m,
             Law::Pid { pid, .. } => pid.u_m,
             Law::Fuzzy { fuzzy, .. } => fuzzy.pid.u_m,
+            Law::CmpcEso { cmpc, .. } => cmpc.u_m,
         }
     }
 
@@ -469,6 +512,10 @@ impl Controller {
             Law::Mpc { mpc, .. } => mpc.u_m = u0,
             Law::Pid { pid, .. } => pid.u_m = u0,
             Law::Fuzzy { fuzzy, .. } => fuzzy.pid.u_m = u0,
+            Law::CmpcEso { cmpc, eso, .. } => {
+                cmpc.u_m = u0;
+                eso.z1 = Pos::from_bits(fxp::f32_to_q::<{ POS_FRAC as i32 }>(xo_m));
+            }
         }
     }
 
@@ -561,6 +608,36 @@ impl Controller {
                     let out = fuzzy.tick(params, &lim, y, r);
                     self.v_cmd_mps = out.v_cmd_mps;
                     self.saturated = out.saturated;
+                }
+            }
+            Law::CmpcEso {
+                gains,
+                eso_gains,
+                b0,
+                cmpc,
+                eso,
+            } => {
+                if ctl_tick {
+                    let z = eso.to_f32();
+                    let input = CmpcInput {
+                        y_m: y,
+                        r_m: r,
+                        ft_n: sample.ft_n,
+                        xi_m: sample.xi_m,
+                        observed: Observed {
+                            z2_mps: z[1],
+                            z3_mps2: z[2],
+                            b0_v_mps2: *b0 * self.v_cmd_mps,
+                        },
+                    };
+                    let out = cmpc.tick(gains, &lim, &input);
+                    self.v_cmd_mps = out.v_cmd_mps;
+                    self.saturated = out.saturated;
+                }
+                if eso_tick {
+                    let u = Vel::from_bits(fxp::f32_to_q::<{ VEL_FRAC as i32 }>(self.v_cmd_mps));
+                    let y = Pos::from_bits(fxp::f32_to_q::<{ POS_FRAC as i32 }>(y));
+                    eso.update(eso_gains, y, u);
                 }
             }
         }

@@ -82,6 +82,9 @@ pub enum DesignError {
     Model,
     /// The Hessian `Phi^T Phi + r_w I` could not be factorised.
     Singular,
+    /// A constraint or share of the constrained MPC is out of range
+    /// (acceleration limit not finite and > 0, a share outside [0, 1]).
+    Constraint,
 }
 
 impl DesignError {
@@ -94,6 +97,7 @@ impl DesignError {
             Self::InputWeight => "input weight r_w must be finite and > 0",
             Self::Model => "plant parameters give a degenerate prediction model",
             Self::Singular => "MPC Hessian is singular",
+            Self::Constraint => "cmpc: a_max must be finite and > 0, load_ff and preview in [0, 1]",
         }
     }
 }

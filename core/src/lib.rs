@@ -7,6 +7,8 @@
 //! * [`design`]: prediction model, ZOH, augmented model and MPC gains (f64,
 //!   nalgebra, no allocation), so the board can re-design after a change;
 //! * [`mpc`], [`td`], [`pid`], [`fuzzy`]: the per-tick laws in f32;
+//! * [`cmpc`]: the constrained MPC-ESO, a box-constrained quadratic program
+//!   solved every period at a fixed, data-independent cost;
 //! * [`eso`]: the extended state observer in fixed point ([`fxp`]) with its
 //!   binary64 reference;
 //! * [`controller`]: the multi-rate schedule behind one `step` call, the
@@ -24,6 +26,7 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+pub mod cmpc;
 pub mod controller;
 pub mod design;
 pub mod eso;

@@ -9,13 +9,14 @@
 //! so the harness needs no mutable static.
 //!
 //! The controllers are designed exactly as the board designs its factory settings:
-//! `Settings::preset(Preset::Paper, kind).controller` (1 kHz base tick).
+//! `Settings::preset(Preset::Paper, kind).controller` (1 kHz base tick); the
+//! constrained MPC-ESO, beyond the paper, with its own preset `limit`.
 #![no_std]
 #![no_main]
 
 use core::mem::MaybeUninit;
 use dca_app::settings::Settings;
-use dca_core::controller::{Controller, ControllerKind, Sample};
+use dca_core::controller::{Controller, ControllerKind, Preset, Sample};
 // The interrupt vectors cortex-m-rt's `link.x` expects from the device crate.
 use stm32f4 as _;
 
@@ -30,7 +31,8 @@ pub extern "C" fn count_controller_size() -> u32 {
 }
 
 /// Design controller `kind` (index into `ControllerKind::ALL`: 0 MPC-ESO, 1 MPC,
-/// 2 PID, 3 fuzzy PID) from the board's factory settings into `slot`. Returns 1 on
+/// 2 PID, 3 fuzzy PID, 4 constrained MPC-ESO) from the board's factory settings
+/// into `slot`. Returns 1 on
 /// success, 0 for an unknown kind or a refused design (the slot is then untouched).
 #[allow(unsafe_code)]
 #[no_mangle]
@@ -38,7 +40,11 @@ pub extern "C" fn count_init(kind: u32, slot: &mut MaybeUninit<Controller>) -> u
     let Some(&kind) = ControllerKind::ALL.get(kind as usize) else {
         return 0;
     };
-    let cfg = Settings::preset(dca_core::controller::Preset::Paper, kind).controller;
+    let preset = match kind {
+        ControllerKind::CmpcEso => Preset::Limit,
+        _ => Preset::Paper,
+    };
+    let cfg = Settings::preset(preset, kind).controller;
     match Controller::new(&cfg) {
         Ok(c) => {
             slot.write(c);

@@ -41,9 +41,13 @@ fn elf() -> PathBuf {
 }
 
 fn spec(name: &str, kind: ControllerKind) -> RunSpec {
+    spec_with(name, kind, Preset::Paper)
+}
+
+fn spec_with(name: &str, kind: ControllerKind, preset: Preset) -> RunSpec {
     RunSpec {
         scenario: Scenario::by_name(name).unwrap(),
-        controller: ControllerConfig::preset(Preset::Paper, kind),
+        controller: ControllerConfig::preset(preset, kind),
         plant: Plant::nominal(),
         effects: Default::default(),
         sensors: SensorMode::Ideal,
@@ -55,16 +59,32 @@ fn spec(name: &str, kind: ControllerKind) -> RunSpec {
 #[test]
 #[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
 fn paper_scenarios_through_the_emulated_firmware_are_bit_identical() {
+    let names = std::env::var("PIL_SCENARIOS").unwrap_or("step,sine,stepload,sineload".into());
+    for name in names.split(',') {
+        bit_identical(&spec(name, ControllerKind::MpcEso), name);
+    }
+}
+
+/// The constrained MPC-ESO (preset `limit`) reads the force sensor and the
+/// encoder too: both must reach the board through the link unchanged.
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn the_constrained_mpc_eso_through_the_emulated_firmware_is_bit_identical() {
+    for name in ["stepload", "sine"] {
+        let s = spec_with(name, ControllerKind::CmpcEso, Preset::Limit);
+        bit_identical(&s, &format!("{name} (cmpc-eso, limit)"));
+    }
+}
+
+/// Run `s` through the emulated firmware and in software; every drive command
+/// must be the same bits.
+fn bit_identical(s: &RunSpec, name: &str) {
     let opts = QemuOptions::default();
-    for name in std::env::var("PIL_SCENARIOS")
-        .unwrap_or("step,sine,stepload,sineload".into())
-        .split(',')
     {
-        let s = spec(name, ControllerKind::MpcEso);
         let t0 = std::time::Instant::now();
-        let emulated = run_hil_qemu(&s, &elf(), &opts, Some(LINK_TIMEOUT_MS))
+        let emulated = run_hil_qemu(s, &elf(), &opts, Some(LINK_TIMEOUT_MS))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
-        let soft = run_software(&s).unwrap();
+        let soft = run_software(s).unwrap();
         let n = emulated.rows.len();
         assert_eq!(n, soft.rows.len());
         assert_eq!(

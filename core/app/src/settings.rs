@@ -23,6 +23,7 @@
 //! value and validates the result, so a refused image leaves the defaults.
 
 use crate::supervisor::SupervisorLimits;
+use dca_core::cmpc::CmpcGains;
 use dca_core::controller::{ConfigError, Controller, ControllerConfig, ControllerKind, Preset};
 use dca_core::eso::EsoFixedGains;
 use dca_core::mpc::MpcGains;
@@ -317,7 +318,7 @@ macro_rules! params {
 }
 
 /// Number of settable values.
-pub const N_PARAMS: usize = 57;
+pub const N_PARAMS: usize = 66;
 
 params! {
     // Plain MPC design.
@@ -330,6 +331,16 @@ params! {
     ("mpc_eso.nc", Bound(1, 0), Bound(8, 0), Int, controller.mpc_eso.nc),
     ("mpc_eso.ts_s", Bound(1, -3), Bound(1, 1), F64, controller.mpc_eso.ts_s),
     ("mpc_eso.rw", Bound(1, -9), Bound(1, 9), F64, controller.mpc_eso.rw),
+    // Constrained MPC-ESO design (dca_core::cmpc).
+    ("cmpc.np", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.np),
+    ("cmpc.block1", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[0]),
+    ("cmpc.block2", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[1]),
+    ("cmpc.block3", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[2]),
+    ("cmpc.ts_s", Bound(1, -3), Bound(1, 1), F64, controller.cmpc.ts_s),
+    ("cmpc.rw", Bound(1, -9), Bound(1, 9), F64, controller.cmpc.rw),
+    ("cmpc.a_max_mps2", Bound(1, -3), Bound(1, 4), F64, controller.cmpc.a_max_mps2),
+    ("cmpc.load_ff", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.load_ff),
+    ("cmpc.preview", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.preview),
     // Observer.
     ("eso.beta1", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta1),
     ("eso.beta2", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta2),
@@ -406,7 +417,9 @@ params! {
 
 /// The tables of [`PARAMS`] whose values are fields of [`ControllerConfig`]
 /// (the rest are the board's: `cal`, `drive`, `sup`, `hil`).
-pub const CONTROLLER_TABLES: [&str; 7] = ["mpc", "mpc_eso", "eso", "td", "pid", "fuzzy", "limits"];
+pub const CONTROLLER_TABLES: [&str; 8] = [
+    "mpc", "mpc_eso", "cmpc", "eso", "td", "pid", "fuzzy", "limits",
+];
 
 /// Set the controller parameter `name` of `cfg` to `v`, range- and
 /// type-checked as [`Settings::set`] does (the console's table, so that a
@@ -606,6 +619,7 @@ impl Settings {
         let design = |e| SettingsError::Design(ConfigError::Design(e));
         MpcGains::design(&c.plant, c.mpc).map_err(design)?;
         MpcGains::design(&c.plant, c.mpc_eso).map_err(design)?;
+        CmpcGains::design(&c.plant, c.cmpc, &c.limits).map_err(design)?;
         EsoFixedGains::new(&c.eso).map_err(|e| SettingsError::Design(ConfigError::Eso(e)))?;
         if !c.td.is_valid() {
             return Err(SettingsError::Design(ConfigError::Td));
@@ -752,7 +766,7 @@ mod tests {
             assert_eq!(&p.name[..p.table().len()], p.table());
             assert_eq!(&p.name[p.table().len() + 1..], p.key());
         }
-        assert_eq!(n, 35);
+        assert_eq!(n, 44);
         let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::Mpc);
         let before = cfg;
         assert_eq!(

@@ -1,0 +1,324 @@
+//! The constrained MPC-ESO's quadratic program against an independent method,
+//! and its limits.
+//!
+//! The reference is a brute-force enumeration of active sets in f64 written
+//! here: for every pattern (each move free, at its lower or at its upper
+//! bound) the free moves solve the KKT equations by Gaussian elimination, and
+//! the pattern is accepted only when the result is primal feasible and the
+//! multipliers have the right signs. It shares no code with the solver under
+//! test (which evaluates candidates with precomputed f32 inverses and keeps the
+//! cheapest), only the design's f64 Hessian and gradient coefficients.
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the matrix notation
+
+use dca_core::cmpc::{solve_box_qp, Cmpc, CmpcDesign, CmpcGains, CmpcInput, CmpcParams, N_MOVES};
+use dca_core::design::DesignError;
+use dca_core::mpc::{Limits, Observed};
+use dca_core::params::PlantParams;
+use proptest::prelude::*;
+
+type M3 = [[f64; N_MOVES]; N_MOVES];
+
+/// Solve `a x = b` (n <= 3) by Gaussian elimination with partial pivoting.
+fn gauss(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let n = b.len();
+    for c in 0..n {
+        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[p][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, p);
+        b.swap(c, p);
+        for r in c + 1..n {
+            let f = a[r][c] / a[c][c];
+            for k in c..n {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = vec![0.0; n];
+    for r in (0..n).rev() {
+        let s: f64 = (r + 1..n).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+fn cost(h: &M3, g: &[f64; N_MOVES], d: &[f64; N_MOVES]) -> f64 {
+    let mut c = 0.0;
+    for i in 0..N_MOVES {
+        let hd: f64 = (0..N_MOVES).map(|j| h[i][j] * d[j]).sum();
+        c += d[i] * (0.5 * hd + g[i]);
+    }
+    c
+}
+
+/// The KKT point of the box QP by enumeration of active sets (f64).
+fn kkt_enumeration(h: &M3, g: &[f64; N_MOVES], lo: &[f64; 3], hi: &[f64; 3]) -> [f64; N_MOVES] {
+    let mut found = Vec::new();
+    for code in 0..27 {
+        let mut state = [0u8; 3];
+        let mut c = code;
+        for s in state.iter_mut() {
+            *s = (c % 3) as u8;
+            c /= 3;
+        }
+        let mut d = [0.0; 3];
+        for j in 0..3 {
+            d[j] = match state[j] {
+                1 => lo[j],
+                2 => hi[j],
+                _ => 0.0,
+            };
+        }
+        let free: Vec<usize> = (0..3).filter(|&j| state[j] == 0).collect();
+        if !free.is_empty() {
+            let a = free
+                .iter()
+                .map(|&i| free.iter().map(|&j| h[i][j]).collect())
+                .collect();
+            let b = free
+                .iter()
+                .map(|&i| {
+                    -(g[i]
+                        + (0..3)
+                            .filter(|j| state[*j] != 0)
+                            .map(|j| h[i][j] * d[j])
+                            .sum::<f64>())
+                })
+                .collect();
+            let x = gauss(a, b).expect("positive definite blocks");
+            for (k, &i) in free.iter().enumerate() {
+                d[i] = x[k];
+            }
+        }
+        let scale = lo.iter().chain(hi).fold(0.0f64, |m, v| m.max(v.abs()));
+        let eps = 1e-9 * scale;
+        let primal = (0..3).all(|j| d[j] >= lo[j] - eps && d[j] <= hi[j] + eps);
+        let grad: Vec<f64> = (0..3)
+            .map(|i| g[i] + (0..3).map(|j| h[i][j] * d[j]).sum::<f64>())
+            .collect();
+        let gscale = g.iter().fold(1e-12f64, |m, v| m.max(v.abs()));
+        let dual = (0..3).all(|j| match state[j] {
+            1 => grad[j] >= -1e-9 * gscale,
+            2 => grad[j] <= 1e-9 * gscale,
+            _ => true,
+        });
+        if primal && dual {
+            found.push(d);
+        }
+    }
+    assert!(!found.is_empty(), "no KKT point: {h:?} {g:?} {lo:?} {hi:?}");
+    // Degenerate cases (a bound exactly at the free optimum) give the same point twice.
+    found[0]
+}
+
+fn designs() -> Vec<(CmpcParams, Limits)> {
+    let lim = Limits::from_plant(&PlantParams::NOMINAL);
+    let base = CmpcParams::LIMIT;
+    vec![
+        (base, lim),
+        (
+            CmpcParams {
+                blocks: [1, 3, 6],
+                rw: 1.0,
+                ..base
+            },
+            lim,
+        ),
+        (
+            CmpcParams {
+                np: 60,
+                blocks: [3, 10, 20],
+                rw: 100.0,
+                ts_s: 0.005,
+                ..base
+            },
+            lim,
+        ),
+    ]
+}
+
+/// A small deterministic generator (xorshift64*), uniform in [lo, hi).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let u = (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64;
+        lo + (hi - lo) * u
+    }
+}
+
+#[test]
+fn the_solver_finds_the_kkt_point_of_an_independent_f64_enumeration() {
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut worst_rel = 0.0f64;
+    let mut active = [0usize; 4];
+    for (params, lim) in designs() {
+        let d = CmpcDesign::new(&PlantParams::NOMINAL, params).unwrap();
+        let g32 = CmpcGains::design(&PlantParams::NOMINAL, params, &lim).unwrap();
+        let v_ts = lim.v_max_mps as f64 * params.ts_s;
+        for _ in 0..4000 {
+            // Random states over what the rig can show: position increments of
+            // a period at full speed, speeds, accelerations, the whole stroke.
+            let state = [
+                rng.next(-2e-3, 2e-3),
+                rng.next(-0.3, 0.3),
+                rng.next(-50.0, 50.0),
+                rng.next(-0.01, 0.11),
+            ];
+            let (r, v_r, a_r, dft) = (
+                rng.next(-0.01, 0.11),
+                rng.next(-0.2, 0.2),
+                rng.next(-5.0, 5.0),
+                rng.next(-1000.0, 1000.0),
+            );
+            let mut g = [0.0f64; 3];
+            let mut g32v = [0.0f32; 3];
+            let feature = [state[0], state[1], state[2], state[3], r, v_r, a_r, dft];
+            for j in 0..3 {
+                g[j] = (0..8).map(|f| d.coef[j][f] * feature[f]).sum::<f64>();
+                g32v[j] = g[j] as f32;
+            }
+            // Bounds as the controller makes them, from a random position and
+            // previous move (near the stroke ends too).
+            let mut cmpc = Cmpc::new(rng.next(-0.0101, 0.1101) as f32);
+            cmpc.u_m = cmpc.u_m.clamp(lim.x_min_m, lim.x_max_m);
+            cmpc.du_prev_m = rng.next(-v_ts, v_ts) as f32;
+            let (lo, hi) = cmpc.bounds(&g32, &lim);
+            let lo64 = lo.map(|v| v as f64);
+            let hi64 = hi.map(|v| v as f64);
+            let want = kkt_enumeration(&d.h, &g, &lo64, &hi64);
+            let got = solve_box_qp(&g32.h, &g32.h_inv, &g32v, &lo, &hi);
+            let n_active = (0..3)
+                .filter(|&j| want[j] <= lo64[j] || want[j] >= hi64[j])
+                .count();
+            active[n_active] += 1;
+            for j in 0..3 {
+                assert!(got.d[j] >= lo[j] && got.d[j] <= hi[j], "infeasible {got:?}");
+                let rel = (got.d[j] as f64 - want[j]).abs() / v_ts;
+                worst_rel = worst_rel.max(rel);
+            }
+            // Cost: never worse than the optimum by more than rounding.
+            let got64 = got.d.map(|v| v as f64);
+            let (cg, cw) = (cost(&d.h, &g, &got64), cost(&d.h, &g, &want));
+            let scale = cw.abs() + d.h[0][0] * v_ts * v_ts;
+            assert!(cg - cw <= 1e-4 * scale, "cost {cg} vs optimum {cw}");
+        }
+    }
+    // Within 0.5 % of one period's largest move: f32 against f64, gains rounded.
+    assert!(
+        worst_rel < 5e-3,
+        "largest deviation {worst_rel} of v_max Ts"
+    );
+    // The random states exercise every number of active bounds.
+    assert!(
+        active.iter().all(|&n| n > 0),
+        "active-set counts {active:?}"
+    );
+}
+
+#[test]
+fn without_active_bounds_the_solution_is_the_unconstrained_minimiser() {
+    let lim = Limits::from_plant(&PlantParams::NOMINAL);
+    let p = CmpcParams::LIMIT;
+    let d = CmpcDesign::new(&PlantParams::NOMINAL, p).unwrap();
+    let g32 = CmpcGains::design(&PlantParams::NOMINAL, p, &lim).unwrap();
+    let g = [1e-3f64, -2e-3, 5e-4].map(|v| v * d.h[0][0] * 1e-3);
+    let want = kkt_enumeration(&d.h, &g, &[-1.0; 3], &[1.0; 3]);
+    let got = solve_box_qp(
+        &g32.h,
+        &g32.h_inv,
+        &g.map(|v| v as f32),
+        &[-1.0; 3],
+        &[1.0; 3],
+    );
+    assert!(!got.constrained);
+    for j in 0..3 {
+        assert!((got.d[j] as f64 - want[j]).abs() <= 1e-5 * want[j].abs().max(1e-9));
+    }
+}
+
+#[test]
+fn invalid_parameters_are_refused() {
+    let p = CmpcParams::LIMIT;
+    let bad = [
+        (CmpcParams { np: 0, ..p }, DesignError::PredictionHorizon),
+        (CmpcParams { np: 101, ..p }, DesignError::PredictionHorizon),
+        (CmpcParams { np: 10, ..p }, DesignError::PredictionHorizon),
+        (
+            CmpcParams {
+                blocks: [0, 3, 6],
+                ..p
+            },
+            DesignError::ControlHorizon,
+        ),
+        (CmpcParams { ts_s: 0.0, ..p }, DesignError::SampleTime),
+        (CmpcParams { rw: 0.0, ..p }, DesignError::InputWeight),
+        (
+            CmpcParams {
+                a_max_mps2: f64::NAN,
+                ..p
+            },
+            DesignError::Constraint,
+        ),
+        (CmpcParams { load_ff: 1.5, ..p }, DesignError::Constraint),
+        (CmpcParams { preview: -0.1, ..p }, DesignError::Constraint),
+    ];
+    for (params, err) in bad {
+        assert_eq!(
+            CmpcDesign::new(&PlantParams::NOMINAL, params).unwrap_err(),
+            err,
+            "{params:?}"
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// Whatever the state, the applied move keeps the speed limit and the
+    /// stroke, and the acceleration limit unless the stroke overrides it.
+    #[test]
+    fn every_move_keeps_the_limits(
+        u in -0.0101f32..0.1101,
+        du_prev in -1e-3f32..1e-3,
+        y in -0.02f32..0.12,
+        r in -0.01f32..0.11,
+        ft in -2000.0f32..2000.0,
+        z2 in -1.0f32..1.0,
+        z3 in -100.0f32..100.0,
+        ticks in 0u8..3,
+    ) {
+        let lim = Limits::from_plant(&PlantParams::NOMINAL);
+        let g = CmpcGains::design(&PlantParams::NOMINAL, CmpcParams::LIMIT, &lim).unwrap();
+        let mut c = Cmpc::new(u.clamp(lim.x_min_m, lim.x_max_m));
+        c.du_prev_m = du_prev;
+        c.ticks = ticks;
+        c.r_prev_m = [r - 1e-4, r - 2e-4];
+        let u0 = c.u_m;
+        let input = CmpcInput {
+            y_m: y,
+            r_m: r,
+            ft_n: ft,
+            xi_m: u0,
+            observed: Observed { z2_mps: z2, z3_mps2: z3, b0_v_mps2: 0.0 },
+        };
+        let out = c.tick(&g, &lim, &input);
+        prop_assert!(out.v_cmd_mps.is_finite());
+        prop_assert!(out.v_cmd_mps.abs() <= lim.v_max_mps * (1.0 + 1e-5));
+        prop_assert!(c.u_m >= lim.x_min_m && c.u_m <= lim.x_max_m);
+        let du = c.u_m - u0;
+        let hard_ok = |d: f32| d.abs() <= lim.v_max_mps * g.ts_s
+            && u0 + g.first_periods * d >= lim.x_min_m - 1e-6
+            && u0 + g.first_periods * d <= lim.x_max_m + 1e-6;
+        // The acceleration limit holds, or no move within it was allowed.
+        let within_acc = (du - du_prev).abs() <= g.dd_max_m * (1.0 + 1e-4) + 1e-7;
+        let acc_feasible = hard_ok(du_prev + g.dd_max_m) || hard_ok(du_prev - g.dd_max_m)
+            || hard_ok(du_prev);
+        prop_assert!(within_acc || !acc_feasible, "du {du} du_prev {du_prev}");
+    }
+}
