@@ -2,3 +2,4 @@
 
 pub mod foreign;
 pub mod fuzz;
+pub mod third;
