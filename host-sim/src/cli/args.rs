@@ -8,10 +8,10 @@ pub struct RunOpts {
     /// Scenario: step, sine, stepload, sineload, openloop, or a TOML file.
     #[arg(long)]
     scenario: String,
-    /// Controller: mpc-eso, mpc, pid or fuzzy-pid (else the scenario file's).
+    /// Controller: mpc-eso, mpc, pid, fuzzy-pid or cmpc-eso (else the scenario file's).
     #[arg(long)]
     controller: Option<String>,
-    /// Configuration: paper, fast or a TOML file (default paper).
+    /// Configuration: paper, fast, limit or a TOML file (default paper).
     #[arg(long)]
     config: Option<String>,
     /// Hose model of the plant: nonlinear (default), linear, rigid, grnn, grnn-memory.
@@ -76,8 +76,9 @@ pub fn seconds(s: f64, what: &str) -> anyhow::Result<std::time::Duration> {
     }
 }
 
-/// The controller preset named by `--config` (`paper` or `fast`).
+/// The controller preset named by `--config` (`paper`, `fast` or `limit`).
 pub fn preset(config: &str) -> anyhow::Result<dca_core::controller::Preset> {
-    dca_core::controller::Preset::from_name(config)
-        .ok_or_else(|| anyhow::anyhow!("unknown --config '{config}': expected paper or fast"))
+    dca_core::controller::Preset::from_name(config).ok_or_else(|| {
+        anyhow::anyhow!("unknown --config '{config}': expected paper, fast or limit")
+    })
 }

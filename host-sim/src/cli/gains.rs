@@ -6,7 +6,7 @@ use super::args::preset;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Preset: paper or fast.
+    /// Preset: paper, fast or limit.
     #[arg(long, default_value = "paper")]
     config: String,
     /// Prediction horizon Np (both designs).

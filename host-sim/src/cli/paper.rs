@@ -13,7 +13,7 @@ pub struct Args {
     /// Report directory.
     #[arg(long, default_value = "out/paper")]
     out: PathBuf,
-    /// Preset: paper or fast.
+    /// Preset: paper, fast or limit.
     #[arg(long, default_value = "paper")]
     config: String,
     /// Also write every run's log into OUT/logs.

@@ -480,7 +480,7 @@ impl ConfigFile {
                 file: file.to_string(),
                 line: None,
                 field: Some("preset".into()),
-                message: format!("unknown preset '{p}' (paper or fast)"),
+                message: format!("unknown preset '{p}' (paper, fast or limit)"),
             }),
         }
     }
@@ -495,7 +495,9 @@ impl ConfigFile {
                     file: file.to_string(),
                     line: None,
                     field: Some("controller".into()),
-                    message: format!("unknown controller '{k}' (mpc-eso, mpc, pid or fuzzy-pid)"),
+                    message: format!(
+                        "unknown controller '{k}' (mpc-eso, mpc, pid, fuzzy-pid or cmpc-eso)"
+                    ),
                 }),
         }
     }

@@ -57,7 +57,7 @@ pub enum RequestError {
     )]
     UnknownScenario(String),
     /// An unknown controller name.
-    #[error("unknown controller '{0}': expected mpc-eso, mpc, pid or fuzzy-pid")]
+    #[error("unknown controller '{0}': expected mpc-eso, mpc, pid, fuzzy-pid or cmpc-eso")]
     UnknownController(String),
     /// A closed-loop scenario without a controller.
     #[error("no controller: give --controller (mpc-eso, mpc, pid, fuzzy-pid)")]
