@@ -4,6 +4,7 @@
 use host_sim::model::hose::data::{DynamicData, QuasiStaticData};
 use host_sim::model::hose::fast::{FastGrnn, Truncated};
 use host_sim::model::hose::grnn::GrnnHose;
+use host_sim::model::hose::local::{LocalCache, LocalGrnn};
 use host_sim::model::hose::memory::{features, MemoryGrnn, MEMORY_DIM};
 use host_sim::model::hose::net::Grnn;
 use rand::{Rng, SeedableRng};
@@ -147,6 +148,98 @@ fn shipped_static_hose() {
         assert!(
             (g - net.predict(&q)).abs() <= h.error_bound_mm3ps(),
             "{q:?}"
+        );
+    }
+}
+
+/// The memory hose's plant evaluator ([`LocalGrnn`]) against the direct sum of the
+/// same network, at two bounds: queries along random walks through the data (as
+/// the plant's: small steps, 99 of them between jumps, so that a list is reused
+/// while the query drifts and is rebuilt when it has drifted too far) and far
+/// outside it, through one cache as in the plant. The value is within the
+/// provable bound and, with the slope, bit-identical to an evaluation through a
+/// fresh cache (the list only speeds the sum up); the slope's distance to the
+/// direct sum's, which the bound does not cover, is printed.
+#[test]
+fn memory_local_within_bound_of_direct_sum() {
+    let d = DynamicData::shipped();
+    let runs: Vec<_> = d.runs.iter().collect();
+    let m = MemoryGrnn::fit_merged(&runs, [0.01, 0.3], 0.1, 2, 0.05).unwrap();
+    let f = features(&d.runs[1], [0.01, 0.3]);
+    let rows = f.len() / MEMORY_DIM;
+    let (lo, hi) = m.net.output_range();
+    let std = m.net.scaler().std.clone();
+    for eps in [1e-3, 1e-6] {
+        let local = LocalGrnn::new(&m.net, eps);
+        let bound = local.error_bound();
+        assert!((bound - eps * (hi - lo)).abs() < 1e-9 * (hi - lo));
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let mut cache = LocalCache::new();
+        let (mut worst, mut worst_far, mut worst_slope) = (0.0f64, 0.0f64, 0.0f64);
+        let mut x = [0.0; MEMORY_DIM];
+        let (mut jumps, mut far_points) = (0u64, 0u64);
+        for i in 0..4000 {
+            let far = i % 100 == 99;
+            if far {
+                x = [
+                    rng.random_range(-5.0..10.0),
+                    rng.random_range(-2e3..2e3),
+                    rng.random_range(-5.0..5.0),
+                    rng.random_range(-5.0..5.0),
+                ];
+            } else if i % 100 == 0 {
+                // Jump to a point of a run (after a far point too).
+                let j = rng.random_range(0..rows);
+                x.copy_from_slice(&f[j * MEMORY_DIM..(j + 1) * MEMORY_DIM]);
+            } else {
+                // A small step (z units), mostly in dP/dt (Newton), as the plant's
+                // queries.
+                for (k, s) in [0.01, 0.03, 0.01, 0.01].iter().enumerate() {
+                    x[k] += s * std[k] * rng.random_range(-1.0..1.0);
+                }
+            }
+            if far {
+                far_points += 1;
+            } else if i % 100 == 0 {
+                jumps += 1;
+            }
+            let u4 = m.net.scale_input(&x);
+            let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| u4[k]);
+            let e = local.eval_z(&u, &mut cache);
+            let fresh = local.eval_z(&u, &mut LocalCache::new());
+            assert_eq!(e.y.to_bits(), fresh.y.to_bits(), "query {i}");
+            assert_eq!(e.dy_du1.to_bits(), fresh.dy_du1.to_bits(), "query {i}");
+            let mut g = [0.0; MEMORY_DIM];
+            let exact = m.net.predict_with_gradient(&x, &mut g);
+            let err = (e.y - exact).abs();
+            if far {
+                worst_far = worst_far.max(err);
+            } else {
+                worst = worst.max(err);
+                let slope = g[1] * std[1];
+                worst_slope = worst_slope.max((e.dy_du1 - slope).abs() / (1.0 + slope.abs()));
+            }
+        }
+        let s = cache.stats();
+        println!(
+            "eps {eps:e}: bound {bound:.3e} mm^3/s; worst |local - direct| {worst:.3e} (data), \
+             {worst_far:.3e} (far); slope rel {worst_slope:.1e}; per evaluation {:.1} kernels, \
+             {:.1} distances; {} rebuilds ({} forced by jumps) of {} evaluations",
+            s.kernels as f64 / s.evals as f64,
+            s.distances as f64 / s.evals as f64,
+            s.rebuilds,
+            jumps + far_points,
+            s.evals
+        );
+        assert!(worst <= bound && worst_far <= bound);
+        // Lists are reused, and rebuilt by drift too (not only after a jump or a
+        // far point), so the comparison with a fresh cache covers stale lists.
+        assert!(s.rebuilds < s.evals / 10, "the list is reused");
+        assert!(
+            s.rebuilds > 2 * (jumps + far_points),
+            "drift rebuilds: {} rebuilds, {} jumps",
+            s.rebuilds,
+            jumps + far_points
         );
     }
 }

@@ -22,11 +22,12 @@
 //! slots). Run the GRNN variants at dt = 2e-4 s (docs/model.md section 4).
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use dca_core::params::PlantParams;
 
 use crate::model::hose::grnn::{GrnnHose, GrnnHoseKind};
+use crate::model::hose::local::{LocalCache, LocalStats};
 
 /// Number of plant states (docs/model.md section 2).
 pub const N_STATES: usize = 11;
@@ -216,10 +217,16 @@ impl HoseModel {
 /// another start. Runs are bit-reproducible because [`Plant::initial_state`]
 /// resets it (as every run starts there), provided one plant instance is not
 /// stepped by two threads at once (give each thread its own clone).
+///
+/// A memory hose also keeps one [`LocalCache`] per line (its evaluator's local
+/// sample list); the values do not depend on it, so only its counters are reset
+/// and a clone starts with an empty one.
 struct GrnnLines {
     hose: Arc<GrnnHose>,
     /// Last solution per line, f64 bits.
     warm: [AtomicU64; 2],
+    /// Evaluation cache per line.
+    cache: [Mutex<LocalCache>; 2],
     /// Solves and iterations since the last reset.
     solves: AtomicU64,
     iterations: AtomicU64,
@@ -230,6 +237,7 @@ impl GrnnLines {
         Self {
             hose,
             warm: [AtomicU64::new(0), AtomicU64::new(0)],
+            cache: Default::default(),
             solves: AtomicU64::new(0),
             iterations: AtomicU64::new(0),
         }
@@ -241,6 +249,9 @@ impl GrnnLines {
         }
         self.solves.store(0, Ordering::Relaxed);
         self.iterations.store(0, Ordering::Relaxed);
+        for c in &self.cache {
+            c.lock().unwrap_or_else(|e| e.into_inner()).reset_stats();
+        }
     }
 }
 
@@ -391,6 +402,23 @@ impl Plant {
     /// The GRNN hose of a GRNN hose model, `None` otherwise.
     pub fn grnn_hose(&self) -> Option<&Arc<GrnnHose>> {
         self.grnn.as_ref().map(|g| &g.hose)
+    }
+
+    /// Work of the memory hose's evaluator ([`LocalStats`], both lines) since
+    /// the last [`Plant::initial_state`] (zero for a static GRNN hose; `None`
+    /// for the other hose models).
+    pub fn grnn_eval_stats(&self) -> Option<LocalStats> {
+        self.grnn.as_ref().map(|g| {
+            let mut t = LocalStats::default();
+            for c in &g.cache {
+                let s = c.lock().unwrap_or_else(|e| e.into_inner()).stats();
+                t.evals += s.evals;
+                t.kernels += s.kernels;
+                t.distances += s.distances;
+                t.rebuilds += s.rebuilds;
+            }
+            t
+        })
     }
 
     /// GRNN hose models: (implicit solves, Newton iterations) since the last
@@ -619,9 +647,14 @@ impl Plant {
             [0.0; 2]
         };
         let warm = f64::from_bits(g.warm[line].load(Ordering::Relaxed));
-        let s = g
-            .hose
-            .solve_dp_paps(p_pa, mem_mpa, q_m3ps, v_m3 * self.inv_beta_e_ppa, warm);
+        let s = g.hose.solve_dp_paps_cached(
+            p_pa,
+            mem_mpa,
+            q_m3ps,
+            v_m3 * self.inv_beta_e_ppa,
+            warm,
+            &mut g.cache[line].lock().unwrap_or_else(|e| e.into_inner()),
+        );
         g.warm[line].store(s.dp_paps.to_bits(), Ordering::Relaxed);
         g.solves.fetch_add(1, Ordering::Relaxed);
         g.iterations

@@ -16,6 +16,7 @@ use crate::gap::diagnose::{diagnose, Options};
 use crate::gap::run::Run;
 use crate::gap::validation::{check_scenario, fit_scenario, rig_log};
 use crate::model::effects::{EffectKind, Effects};
+use crate::model::hose::grnn::GrnnHose;
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::model::scenario::Scenario;
 use crate::model::sensors::SensorMode;
@@ -68,6 +69,7 @@ pub fn bench(reps: usize) -> Vec<BenchRow> {
     let reps = reps.max(1);
     let (mut rows, floor) = plant_rows(reps);
     rows.extend(run_rows(reps, floor));
+    rows.extend(memory_rows(reps));
     rows.push(gap_row());
     rows.push(batch_row(reps));
     rows
@@ -160,6 +162,84 @@ fn run_rows(reps: usize, floor: f64) -> Vec<BenchRow> {
         ));
     }
     rows
+}
+
+/// The grnn-memory plant with MPC-ESO on stepload, its evaluator ([`crate::model::hose::local`])
+/// against the former one (grid-binned `Truncated`, the same bound), run after
+/// run in one process: real-time factors, their ratio and the work per plant step.
+fn memory_rows(reps: usize) -> Vec<BenchRow> {
+    let new = spec(
+        "stepload",
+        ControllerKind::MpcEso,
+        HoseModel::GrnnMemory,
+        2e-4,
+    );
+    let mut old = new.clone();
+    old.plant = Plant::with_grnn_hose(
+        dca_core::params::PlantParams::NOMINAL,
+        std::sync::Arc::new(
+            GrnnHose::from_memory_truncated(&GrnnHose::shipped_memory_grnn(), "former")
+                .expect("memory inputs"),
+        ),
+    );
+    let d = new.scenario.duration_s();
+    let (mut t_new, mut t_old) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..reps.min(3) {
+        t_old = t_old.min(time_run(&old));
+        t_new = t_new.min(time_run(&new));
+    }
+    // The work per step, counted on the plant stepped open loop (`openloop`;
+    // a run clones its plant, so the closed loop's counters are not visible).
+    let plant = &new.plant;
+    let ol = Scenario::by_name("openloop").expect("nominal scenario");
+    let mut x = plant.initial_state(ol.load_n(0.0));
+    let n_steps = ol.n_steps(new.dt_s);
+    for k in 0..n_steps {
+        let t = crate::model::scenario::tick_time_s(k, new.dt_s);
+        plant.step(
+            &mut x,
+            ol.v_cmd_mps(t).unwrap_or(0.0),
+            ol.load_n(t),
+            new.dt_s,
+        );
+    }
+    black_box(x);
+    let steps = n_steps as f64;
+    let w = plant.grnn_eval_stats().unwrap_or_default();
+    let (solves, iterations) = plant.grnn_solver_stats().unwrap_or_default();
+    vec![
+        row(
+            "grnn-memory plant + MPC-ESO (stepload, 10 s, dt 2e-4), one core",
+            d / t_new,
+            "x real time",
+        ),
+        row(
+            "  the same with the former evaluator (grid-binned Truncated)",
+            d / t_old,
+            "x real time",
+        ),
+        row("  speed-up, same run", t_old / t_new, "x"),
+        row(
+            "  GRNN evaluations per plant step (openloop, 8 Newton solves a step)",
+            iterations as f64 / steps,
+            "",
+        ),
+        row(
+            "  kernel evaluations (exp) per GRNN evaluation",
+            w.kernels as f64 / w.evals.max(1) as f64,
+            "",
+        ),
+        row(
+            "  list rebuilds per 1000 GRNN evaluations",
+            1e3 * w.rebuilds as f64 / w.evals.max(1) as f64,
+            "",
+        ),
+        row(
+            "  Newton iterations per solve",
+            iterations as f64 / solves.max(1) as f64,
+            "",
+        ),
+    ]
 }
 
 /// One gap diagnosis of two 10 s runs (one fit, one check) on one core.

@@ -17,12 +17,16 @@
 //! 1e-3 Pa/s, after at most 30 iterations.
 //!
 //! Evaluation: the static map uses [`FastGrnn`] (table + truncated sum), the
-//! memory map [`Truncated`]; both within a stated bound of the direct sum.
+//! memory map [`LocalGrnn`] (a cached local list of samples, one
+//! [`LocalCache`] per line: [`GrnnHose::solve_dp_paps_cached`]); both within a
+//! stated bound of the direct sum. [`GrnnHose::from_memory_truncated`] keeps the
+//! memory map's former evaluator ([`Truncated`], grid-binned) for comparisons.
 
 use std::sync::{Arc, OnceLock};
 
 use super::data::{DynamicData, QuasiStaticData};
 use super::fast::{FastGrnn, Truncated};
+use super::local::{LocalCache, LocalGrnn};
 use super::memory::{MemoryGrnn, MEMORY_DIM, N_FILTERS};
 use super::net::{FitError, Grnn};
 
@@ -47,7 +51,8 @@ pub const SHIPPED_MEMORY_SIGMA: f64 = 0.1;
 /// than 0.2 % of the output range and the scores not at all (test
 /// `grnn_memory.rs`).
 pub const SHIPPED_MEMORY_MERGE_Z: f64 = 0.05;
-/// Relative truncation bound of the memory hose's evaluator.
+/// Relative bound of the memory hose's evaluator: |evaluated - direct sum| <=
+/// MEMORY_TRUNC_EPS (Y_max - Y_min).
 pub const MEMORY_TRUNC_EPS: f64 = 1e-3;
 
 /// Which GRNN a hose uses.
@@ -64,6 +69,11 @@ enum Evaluator {
     Table(FastGrnn),
     Trunc {
         trunc: Truncated,
+        mean: [f64; MEMORY_DIM],
+        inv_std: [f64; MEMORY_DIM],
+    },
+    Local {
+        local: LocalGrnn,
         mean: [f64; MEMORY_DIM],
         inv_std: [f64; MEMORY_DIM],
     },
@@ -115,8 +125,39 @@ impl GrnnHose {
         })
     }
 
-    /// A memory hose from a memory GRNN.
+    /// A memory hose from a memory GRNN, evaluated by [`LocalGrnn`] within
+    /// [`MEMORY_TRUNC_EPS`] of the output range.
     pub fn from_memory(m: &MemoryGrnn, description: impl Into<String>) -> Result<Self, FitError> {
+        Self::from_memory_eps(m, MEMORY_TRUNC_EPS, description)
+    }
+
+    /// A memory hose evaluated by [`LocalGrnn`] within `eps` (in (0, 1)) of the
+    /// output range (a tight `eps` gives a reference close to the direct sum).
+    pub fn from_memory_eps(
+        m: &MemoryGrnn,
+        eps: f64,
+        description: impl Into<String>,
+    ) -> Result<Self, FitError> {
+        let mut h = Self::from_memory_truncated(m, description)?;
+        let sc = m.net.scaler();
+        let local = LocalGrnn::new(&m.net, eps);
+        h.bound = local.error_bound();
+        h.eval = Evaluator::Local {
+            local,
+            mean: core::array::from_fn(|k| sc.mean[k]),
+            inv_std: core::array::from_fn(|k| 1.0 / sc.std[k]),
+        };
+        Ok(h)
+    }
+
+    /// A memory hose with the former evaluator, [`Truncated`] (grid-binned, bound
+    /// [`MEMORY_TRUNC_EPS`] of the range): the same model, about 7 times slower
+    /// in the closed-loop plant (`host-sim bench`); kept for side-by-side
+    /// comparisons (the bench, tests).
+    pub fn from_memory_truncated(
+        m: &MemoryGrnn,
+        description: impl Into<String>,
+    ) -> Result<Self, FitError> {
         if m.net.dim() != MEMORY_DIM {
             return Err(FitError::Shape(
                 "a memory hose needs the memory inputs".into(),
@@ -171,21 +212,30 @@ impl GrnnHose {
     pub fn shipped_memory() -> Arc<Self> {
         static CELL: OnceLock<Arc<GrnnHose>> = OnceLock::new();
         CELL.get_or_init(|| {
-            let d = DynamicData::shipped();
-            let runs: Vec<_> = d.runs.iter().collect();
-            let m = MemoryGrnn::fit_merged(
-                &runs,
-                SHIPPED_MEMORY_TAUS_S,
-                SHIPPED_MEMORY_SIGMA,
-                1,
-                SHIPPED_MEMORY_MERGE_Z,
-            )
-            .expect("shipped data fit");
             Arc::new(
-                Self::from_memory(&m, "memory GRNN, shipped dynamic data").expect("memory inputs"),
+                Self::from_memory(
+                    &Self::shipped_memory_grnn(),
+                    "memory GRNN, shipped dynamic data",
+                )
+                .expect("memory inputs"),
             )
         })
         .clone()
+    }
+
+    /// The network of [`GrnnHose::shipped_memory`], fitted anew (a few tens of
+    /// milliseconds in release).
+    pub fn shipped_memory_grnn() -> MemoryGrnn {
+        let d = DynamicData::shipped();
+        let runs: Vec<_> = d.runs.iter().collect();
+        MemoryGrnn::fit_merged(
+            &runs,
+            SHIPPED_MEMORY_TAUS_S,
+            SHIPPED_MEMORY_SIGMA,
+            1,
+            SHIPPED_MEMORY_MERGE_Z,
+        )
+        .expect("shipped data fit")
     }
 
     /// Static or memory.
@@ -226,8 +276,23 @@ impl GrnnHose {
     /// Wall rate g [mm^3/s] and its slope dg/d(dP/dt) [mm^3/s per MPa/s] at
     /// pressure `p_mpa`, rate `dpdt_mpa_s` and (memory hose) the filter
     /// deviations `mem_mpa` = P - lowpass(P, tau_k) (ignored by a static hose).
-    #[inline]
+    /// The same values as [`GrnnHose::wall_rate_cached`] (slower for a memory
+    /// hose: its list is built for this one call).
     pub fn wall_rate(&self, p_mpa: f64, dpdt_mpa_s: f64, mem_mpa: [f64; N_FILTERS]) -> (f64, f64) {
+        self.wall_rate_cached(p_mpa, dpdt_mpa_s, mem_mpa, &mut LocalCache::new())
+    }
+
+    /// [`GrnnHose::wall_rate`] through `cache` (used by a memory hose's
+    /// [`LocalGrnn`]; give each query stream, e.g. each hose line, its own). The
+    /// result does not depend on the cache's state.
+    #[inline]
+    pub fn wall_rate_cached(
+        &self,
+        p_mpa: f64,
+        dpdt_mpa_s: f64,
+        mem_mpa: [f64; N_FILTERS],
+        cache: &mut LocalCache,
+    ) -> (f64, f64) {
         match &self.eval {
             Evaluator::Table(f) => {
                 let (g, grad) = f.eval([p_mpa, dpdt_mpa_s]);
@@ -243,6 +308,16 @@ impl GrnnHose {
                 let e = trunc.eval_z(&u, false);
                 (e.y, e.grad[1] * inv_std[1])
             }
+            Evaluator::Local {
+                local,
+                mean,
+                inv_std,
+            } => {
+                let x = [p_mpa, dpdt_mpa_s, mem_mpa[0], mem_mpa[1]];
+                let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| (x[k] - mean[k]) * inv_std[k]);
+                let e = local.eval_z(&u, cache);
+                (e.y, e.dy_du1 * inv_std[1])
+            }
         }
     }
 
@@ -256,6 +331,21 @@ impl GrnnHose {
         a_m3ppa: f64,
         warm_paps: f64,
     ) -> Solve {
+        let mut cache = LocalCache::new();
+        self.solve_dp_paps_cached(p_pa, mem_mpa, q_m3ps, a_m3ppa, warm_paps, &mut cache)
+    }
+
+    /// [`GrnnHose::solve_dp_paps`] with the evaluations through `cache` (the same
+    /// result, see [`GrnnHose::wall_rate_cached`]).
+    pub fn solve_dp_paps_cached(
+        &self,
+        p_pa: f64,
+        mem_mpa: [f64; N_FILTERS],
+        q_m3ps: f64,
+        a_m3ppa: f64,
+        warm_paps: f64,
+        cache: &mut LocalCache,
+    ) -> Solve {
         let p_mpa = p_pa * 1e-6;
         let mut lo = (q_m3ps - 1e-9 * self.g_max) / a_m3ppa;
         let mut hi = (q_m3ps - 1e-9 * self.g_min) / a_m3ppa;
@@ -265,7 +355,7 @@ impl GrnnHose {
             0.5 * (lo + hi)
         };
         for it in 1..=NEWTON_MAX_ITER {
-            let (g, slope) = self.wall_rate(p_mpa, x * 1e-6, mem_mpa);
+            let (g, slope) = self.wall_rate_cached(p_mpa, x * 1e-6, mem_mpa, cache);
             let f = a_m3ppa * x + 1e-9 * g - q_m3ps;
             if f == 0.0 {
                 return Solve {

@@ -8,6 +8,8 @@
 //!   bit for bit (the reference implementation's split);
 //! * [`memory`]: the GRNN with memory (filtered pressures as inputs);
 //! * [`fast`]: evaluation much faster than the direct sum, within stated bounds;
+//! * [`local`]: the memory GRNN in the integrator, from a cached local list of
+//!   samples, within a provable bound;
 //! * [`grnn`]: the GRNN hoses of the plant
 //!   ([`HoseModel::Grnn`](super::plant::HoseModel::Grnn),
 //!   [`HoseModel::GrnnMemory`](super::plant::HoseModel::GrnnMemory)) and the
@@ -19,6 +21,7 @@
 pub mod data;
 pub mod fast;
 pub mod grnn;
+pub mod local;
 pub mod memory;
 pub mod net;
 pub mod split;
