@@ -60,7 +60,7 @@ pub enum RequestError {
     #[error("unknown controller '{0}': expected mpc-eso, mpc, pid, fuzzy-pid or cmpc-eso")]
     UnknownController(String),
     /// A closed-loop scenario without a controller.
-    #[error("no controller: give --controller (mpc-eso, mpc, pid, fuzzy-pid)")]
+    #[error("no controller: give --controller (mpc-eso, mpc, pid, fuzzy-pid or cmpc-eso) or `controller = ...` in the configuration file")]
     NoController,
     /// An unknown hose model name.
     #[error("unknown hose '{0}': expected nonlinear, linear or rigid")]
@@ -114,18 +114,27 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         (s, None, Default::default())
     };
     let file = req.scenario.as_str();
-    let kind_name = match (&req.controller, &file_cfg) {
-        (Some(k), _) => Some(k.clone()),
-        (None, Some(c)) => c.controller.clone(),
-        (None, None) => None,
+    // A `--config FILE.toml` is read once: its `controller` key names the
+    // controller unless `--controller` does, before the scenario file's.
+    let config_file = match &req.config {
+        Some(arg) if is_toml(arg) => Some(ConfigFile::read(Path::new(arg))?),
+        _ => None,
     };
+    let kind_name = req
+        .controller
+        .clone()
+        .or_else(|| config_file.as_ref().and_then(|c| c.controller.clone()))
+        .or_else(|| file_cfg.as_ref().and_then(|c| c.controller.clone()));
     let kind = match kind_name {
         Some(k) => ControllerKind::from_name(&k).ok_or(RequestError::UnknownController(k))?,
         None if scenario.is_open_loop() => ControllerKind::MpcEso,
         None => return Err(RequestError::NoController),
     };
     let controller = match (&req.config, &file_cfg) {
-        (Some(arg), _) => config_from_arg(arg, kind)?,
+        (Some(arg), _) => match &config_file {
+            Some(f) => f.resolve(kind, arg)?,
+            None => config_from_arg(arg, kind)?,
+        },
         (None, Some(c)) => c.resolve(kind, file)?,
         (None, None) => ControllerConfig::preset(Preset::Paper, kind),
     };
@@ -279,6 +288,36 @@ mod tests {
         assert_eq!(spec.controller.pid.ts_s, 0.01);
         assert_eq!(spec.sensors, SensorMode::Realistic);
         assert_eq!(spec.seed, 9);
+    }
+
+    /// A configuration file's `controller` key names the controller; the
+    /// command line's `--controller` wins over it.
+    #[test]
+    fn the_configuration_file_names_the_controller() {
+        let dir = std::env::temp_dir().join(format!("dca-request-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("limit.toml");
+        std::fs::write(&path, "preset = \"limit\"\ncontroller = \"cmpc-eso\"\n").unwrap();
+        let config = Some(path.display().to_string());
+        let spec = resolve(&RunRequest {
+            scenario: "step".into(),
+            config: config.clone(),
+            ..RunRequest::default()
+        })
+        .unwrap();
+        assert_eq!(spec.controller.kind, ControllerKind::CmpcEso);
+        let spec = resolve(&RunRequest {
+            config,
+            ..req("step")
+        })
+        .unwrap();
+        assert_eq!(spec.controller.kind, ControllerKind::Pid);
+        let none = resolve(&RunRequest {
+            scenario: "step".into(),
+            ..RunRequest::default()
+        });
+        assert!(matches!(none, Err(RequestError::NoController)));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
