@@ -14,6 +14,12 @@ pub const NONE_GAP: f64 = 1.0;
 pub const MIN_SHRINK: f64 = 0.3;
 /// Extra shrink of the remaining gap a second effect must give (fit and check).
 pub const SECOND_SHRINK: f64 = 0.3;
+/// `parameters` against a named effect that also explains the gap: the
+/// re-estimate wins only when it leaves the check runs at most
+/// (1 - PARAMS_MARGIN) times the effect's gap there. A named effect that
+/// holds about as well on held-out runs wins (a wrong bulk modulus must not
+/// absorb entrained air).
+pub const PARAMS_MARGIN: f64 = 0.1;
 
 /// The held-out runs confirm a model change that took their gap from
 /// `before` to `after`: it shrinks by at least `min_shrink`, or it ends
@@ -63,10 +69,15 @@ pub struct Decision {
 /// Decide on the ranked candidates (best first) and the pair, given the
 /// nominal gaps: pooled over all runs, of the fit runs and of the check runs.
 ///
-/// `none` when the pooled gap is within the noise; else the best single
-/// effect when it shrinks the gap by [`MIN_SHRINK`] on the fit runs and the
-/// check runs confirm it ([`confirms`]); else the pair's first effect when
-/// the pair does so together; else `unexplained`.
+/// `none` when the pooled gap is within the noise. Else a candidate
+/// *explains* the gap when it shrinks it by [`MIN_SHRINK`] on the fit runs
+/// and the check runs confirm it ([`confirms`]); `parameters` must moreover
+/// be plausible (every ratio within [`super::grey_box::PLAUSIBLE`], none at
+/// its bound). Of the best candidate other than `parameters` (E) and the
+/// `parameters` candidate (P): both explain: P only when its check-run gap
+/// is below (1 - [`PARAMS_MARGIN`]) times E's, else E; one explains: that
+/// one; neither: the pair's first effect when the pair explains the gap
+/// together; else `unexplained`.
 pub fn decide(
     pooled: f64,
     before_fit: f64,
@@ -85,12 +96,35 @@ pub fn decide(
         Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
             && confirms(before_check, check_after, MIN_SHRINK)
     };
-    let best = &ranked[0].candidate;
-    let chosen = if explains(best.fit_after, best.check_after) {
-        Some(0)
-    } else {
-        pair.filter(|p| explains(p.fit_after, p.check_after))
+    let holds = |i: &usize| {
+        let c = &ranked[*i];
+        c.plausible && explains(c.candidate.fit_after, c.candidate.check_after)
+    };
+    let effect = ranked
+        .iter()
+        .position(|c| c.kind != EffectKind::Parameters)
+        .filter(holds);
+    let params = ranked
+        .iter()
+        .position(|c| c.kind == EffectKind::Parameters)
+        .filter(holds);
+    let chosen = match (effect, params) {
+        (Some(e), Some(p)) => {
+            let (ce, cp) = (
+                ranked[e].candidate.check_after,
+                ranked[p].candidate.check_after,
+            );
+            Some(if cp < (1.0 - PARAMS_MARGIN) * ce {
+                p
+            } else {
+                e
+            })
+        }
+        (Some(i), None) | (None, Some(i)) => Some(i),
+        (None, None) => pair
+            .filter(|p| explains(p.fit_after, p.check_after))
             .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
+            .filter(|i| ranked[*i].plausible),
     };
     let verdict = chosen.map_or(Verdict::Unexplained, |i| Verdict::Effect(ranked[i].kind));
     let second = pair.map(|p| {

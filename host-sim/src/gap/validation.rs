@@ -53,7 +53,9 @@ fn case(name: &str, list: &[(EffectKind, &[f64])]) -> Case {
     }
 }
 
-/// The cases: clean runs, every effect small and large, three pairs.
+/// The cases: clean runs, every effect of the catalogue small and large,
+/// three pairs, three rigs whose nominal parameters are off (`parameters`)
+/// and three sensors off their calibration (`sensor_calibration`).
 pub fn cases() -> Vec<Case> {
     use EffectKind::*;
     vec![
@@ -104,6 +106,30 @@ pub fn cases() -> Vec<Case> {
         case(
             "backlash + accumulator_thermal",
             &[(Backlash, &[150e-6, 2e7]), (AccumulatorThermal, &[4.0])],
+        ),
+        // Ratios in the order of `ParameterRatios`: m, beta_e, hose wall
+        // compliance, viscous damping, servo time constant, precharge, areas.
+        case(
+            "parameters: bulk modulus 0.6x",
+            &[(Parameters, &[1.0, 0.6])],
+        ),
+        case("parameters: mass 1.6x", &[(Parameters, &[1.6])]),
+        case(
+            "parameters: hose wall 1.7x softer",
+            &[(Parameters, &[1.0, 1.0, 1.7])],
+        ),
+        // channel (0 xo, 1 xi, 2 p1, 3 p2, 4 ft), gain, offset (SI), quad.
+        case(
+            "sensor_calibration: p1 gain 1.04",
+            &[(SensorCalibration, &[2.0, 1.04, 0.0, 0.0])],
+        ),
+        case(
+            "sensor_calibration: LVDT gain 0.98, offset 0.3 mm",
+            &[(SensorCalibration, &[0.0, 0.98, 3e-4, 0.0])],
+        ),
+        case(
+            "sensor_calibration: force gain 0.93",
+            &[(SensorCalibration, &[4.0, 0.93, 0.0, 0.0])],
         ),
     ]
 }
