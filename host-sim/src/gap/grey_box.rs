@@ -15,7 +15,9 @@
 //!    together with those already chosen (Levenberg-Marquardt); the best is
 //!    kept while it lowers the residual's excess over the noise floor by at
 //!    least [`MIN_GAIN`] of what is left, at most [`MAX_FREE`] ratios (a
-//!    small, identifiable subset; the others stay 1).
+//!    small, identifiable subset; the others stay 1), and only while the
+//!    residual left implies a gap of at least
+//!    [`super::policy::CLEAN_GAP`] (what clean runs show).
 //! 3. **Fit**: Levenberg-Marquardt on the subset to convergence.
 //! 4. **Intervals**: cov(theta) = s^2 (J^T J)^-1 at the estimate, with
 //!    s^2 = RSS / (N - p) and inflated by (1 + rho) / (1 - rho), rho the
@@ -27,6 +29,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::lsq::{self, levenberg_marquardt, noise_floor, normal_step};
+use super::policy::CLEAN_GAP;
 use super::run::Run;
 use crate::model::effects::{Effects, ParameterRatios, RATIO_BOUNDS, RATIO_KEYS};
 use crate::model::params;
@@ -165,7 +168,12 @@ pub fn fit(runs: &[Run], base: &Plant, dt_s: f64) -> Option<GreyBox> {
     //    already chosen; the best kept while it lowers the excess by MIN_GAIN.
     let mut now: Option<SubFit> = None;
     let mut now_excess = excess(lsq::ss(&r0));
-    while now.as_ref().map_or(0, |s| s.free.len()) < MAX_FREE && now_excess > 0.0 {
+    // The gap the excess implies: its mean per block and channel, rooted.
+    let implied_gap = |e: f64| (e / r0.len().max(1) as f64).sqrt();
+    while now.as_ref().map_or(0, |s| s.free.len()) < MAX_FREE
+        && now_excess > 0.0
+        && (now.is_none() || implied_gap(now_excess) >= CLEAN_GAP)
+    {
         let (free, x) = match &now {
             Some(s) => (s.free.clone(), s.fit.x.clone()),
             None => (Vec::new(), Vec::new()),

@@ -4,22 +4,42 @@
 //! ([`super::candidates`]).
 
 use super::candidates::{CandidateFit, PairFit};
-use super::diagnosis::Verdict;
+use super::diagnosis::{Candidate, Verdict};
 use super::measure::Shrink;
 use crate::model::effects::EffectKind;
 
 /// Nominal gap (pooled over all runs) below which the verdict is `none`.
 pub const NONE_GAP: f64 = 1.0;
+/// The gap clean runs show (0.3 to 0.6 on realistic sensors): a model that
+/// leaves less has nothing left to explain.
+pub const CLEAN_GAP: f64 = 0.5;
 /// Smallest shrink, on the fit and on the check runs, that explains a gap.
 pub const MIN_SHRINK: f64 = 0.3;
 /// Extra shrink of the remaining gap a second effect must give (fit and check).
 pub const SECOND_SHRINK: f64 = 0.3;
 /// `parameters` against a named effect that also explains the gap: the
-/// re-estimate wins only when it leaves the check runs at most
-/// (1 - PARAMS_MARGIN) times the effect's gap there. A named effect that
-/// holds about as well on held-out runs wins (a wrong bulk modulus must not
-/// absorb entrained air).
+/// re-estimate wins only when it leaves at most (1 - PARAMS_MARGIN) times
+/// the effect's gap ([`params_clearly_better`]). A named effect that holds
+/// about as well wins (a wrong bulk modulus must not absorb entrained air).
 pub const PARAMS_MARGIN: f64 = 0.1;
+
+/// Whether the `parameters` re-estimate `p` beats the named effect `e` when
+/// both explain the gap: it leaves the check runs below (1 -
+/// [`PARAMS_MARGIN`]) times `e`'s gap there; or, when both leave the check
+/// runs within the noise (they cannot tell the two apart), `e` leaves more
+/// on the fit runs than clean runs show ([`CLEAN_GAP`]) and `p` leaves
+/// below (1 - [`PARAMS_MARGIN`]) times it. Ties go to the named effect: re-estimating
+/// parameters must not absorb it.
+pub fn params_clearly_better(p: &Candidate, e: &Candidate) -> bool {
+    let clearly = |p: f64, e: f64| p < (1.0 - PARAMS_MARGIN) * e;
+    if clearly(p.check_after, e.check_after) {
+        return true;
+    }
+    p.check_after < NONE_GAP
+        && e.check_after < NONE_GAP
+        && e.fit_after >= CLEAN_GAP
+        && clearly(p.fit_after, e.fit_after)
+}
 
 /// The held-out runs confirm a model change that took their gap from
 /// `before` to `after`: it shrinks by at least `min_shrink`, or it ends
@@ -74,9 +94,9 @@ pub struct Decision {
 /// and the check runs confirm it ([`confirms`]); `parameters` must moreover
 /// be plausible (every ratio within [`super::grey_box::PLAUSIBLE`], none at
 /// its bound). Of the best candidate other than `parameters` (E) and the
-/// `parameters` candidate (P): both explain: P only when its check-run gap
-/// is below (1 - [`PARAMS_MARGIN`]) times E's, else E; one explains: that
-/// one; neither: the pair's first effect when the pair explains the gap
+/// `parameters` candidate (P): both explain: P only when it is clearly
+/// better ([`params_clearly_better`]), else E; one explains: that one;
+/// neither: the pair's first effect when the pair explains the gap
 /// together; else `unexplained`.
 pub fn decide(
     pooled: f64,
@@ -109,17 +129,13 @@ pub fn decide(
         .position(|c| c.kind == EffectKind::Parameters)
         .filter(holds);
     let chosen = match (effect, params) {
-        (Some(e), Some(p)) => {
-            let (ce, cp) = (
-                ranked[e].candidate.check_after,
-                ranked[p].candidate.check_after,
-            );
-            Some(if cp < (1.0 - PARAMS_MARGIN) * ce {
+        (Some(e), Some(p)) => Some(
+            if params_clearly_better(&ranked[p].candidate, &ranked[e].candidate) {
                 p
             } else {
                 e
-            })
-        }
+            },
+        ),
         (Some(i), None) | (None, Some(i)) => Some(i),
         (None, None) => pair
             .filter(|p| explains(p.fit_after, p.check_after))
@@ -158,5 +174,39 @@ pub fn decide(
         verdict,
         chosen,
         second,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cand(fit_after: f64, check_after: f64) -> Candidate {
+        Candidate {
+            effect: "x".into(),
+            form: "named".into(),
+            subsystem: "plant".into(),
+            params: Default::default(),
+            fit_shrink: 0.0,
+            check_shrink: 0.0,
+            fit_after,
+            check_after,
+            evals: 1,
+            parameters: None,
+        }
+    }
+
+    #[test]
+    fn parameters_win_only_when_clearly_better() {
+        // Clearly lower on excited check runs.
+        assert!(params_clearly_better(&cand(0.4, 1.0), &cand(0.4, 2.0)));
+        // About as good on the check runs: the named effect.
+        assert!(!params_clearly_better(&cand(0.3, 1.9), &cand(2.0, 2.0)));
+        // Both check runs within the noise: the fit runs decide, when the
+        // effect leaves a gap there.
+        assert!(params_clearly_better(&cand(0.3, 0.47), &cand(0.8, 0.45)));
+        assert!(!params_clearly_better(&cand(0.75, 0.47), &cand(0.8, 0.45)));
+        // ... but not where the effect leaves no more than clean runs show.
+        assert!(!params_clearly_better(&cand(0.28, 0.47), &cand(0.45, 0.45)));
     }
 }

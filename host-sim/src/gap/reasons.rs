@@ -87,7 +87,7 @@ pub fn second_added(other: EffectKind, fit_extra: f64, check_extra: f64) -> Stri
 pub fn parameters_set_aside(p: &Candidate, plausible: bool) -> String {
     if plausible {
         format!(
-            "; re-estimating the parameters ({}) shrinks the gap by {:.0} % / {:.0} %, but the named effect holds as well on the check runs (the re-estimate must leave them at most {:.0} % of its gap), so the effect is preferred",
+            "; re-estimating the parameters ({}) shrinks the gap by {:.0} % / {:.0} %, but not clearly more than the named effect (it must leave at most {:.0} % of the effect's gap on the check runs, or on the fit runs where both keep the check runs within the noise), so the effect is preferred",
             p.form,
             p.fit_shrink * 100.0,
             p.check_shrink * 100.0,
