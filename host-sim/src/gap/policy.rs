@@ -41,6 +41,25 @@ pub fn params_clearly_better(p: &Candidate, e: &Candidate) -> bool {
         && clearly(p.fit_after, e.fit_after)
 }
 
+/// A pair's gaps as a candidate's, for [`params_clearly_better`].
+fn pair_gaps(pair: Option<&PairFit>) -> Candidate {
+    let (fit_after, check_after) = pair.map_or((f64::INFINITY, f64::INFINITY), |p| {
+        (p.fit_after, p.check_after)
+    });
+    Candidate {
+        effect: String::new(),
+        form: String::new(),
+        subsystem: String::new(),
+        params: Default::default(),
+        fit_shrink: 0.0,
+        check_shrink: 0.0,
+        fit_after,
+        check_after,
+        evals: 0,
+        parameters: None,
+    }
+}
+
 /// The held-out runs confirm a model change that took their gap from
 /// `before` to `after`: it shrinks by at least `min_shrink`, or it ends
 /// within the noise (runs that show no gap beyond the noise do not excite
@@ -95,7 +114,9 @@ pub struct Decision {
 /// be plausible (every ratio within [`super::grey_box::PLAUSIBLE`], none at
 /// its bound). Of the best candidate other than `parameters` (E) and the
 /// `parameters` candidate (P): both explain: P only when it is clearly
-/// better ([`params_clearly_better`]), else E; one explains: that one;
+/// better ([`params_clearly_better`]), else E; only E explains: E; only P
+/// explains: P, unless a pair of two named effects explains the gap too and
+/// P is not clearly better than the pair (then the pair's first effect);
 /// neither: the pair's first effect when the pair explains the gap
 /// together; else `unexplained`.
 pub fn decide(
@@ -128,6 +149,15 @@ pub fn decide(
         .iter()
         .position(|c| c.kind == EffectKind::Parameters)
         .filter(holds);
+    let pair_choice = pair
+        .filter(|p| explains(p.fit_after, p.check_after))
+        .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
+        .filter(|i| ranked[*i].plausible);
+    let named_pair = pair_choice.filter(|_| {
+        pair.is_some_and(|p| {
+            p.first != EffectKind::Parameters && p.second != EffectKind::Parameters
+        })
+    });
     let chosen = match (effect, params) {
         (Some(e), Some(p)) => Some(
             if params_clearly_better(&ranked[p].candidate, &ranked[e].candidate) {
@@ -136,11 +166,17 @@ pub fn decide(
                 e
             },
         ),
-        (Some(i), None) | (None, Some(i)) => Some(i),
-        (None, None) => pair
-            .filter(|p| explains(p.fit_after, p.check_after))
-            .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
-            .filter(|i| ranked[*i].plausible),
+        (Some(i), None) => Some(i),
+        (None, Some(i)) => {
+            // Two named effects together that explain the gap as well as
+            // the re-estimate: an added effect is needed after all.
+            let c = &ranked[i].candidate;
+            match named_pair {
+                Some(j) if !params_clearly_better(c, &pair_gaps(pair)) => Some(j),
+                _ => Some(i),
+            }
+        }
+        (None, None) => pair_choice,
     };
     let verdict = chosen.map_or(Verdict::Unexplained, |i| Verdict::Effect(ranked[i].kind));
     let second = pair.map(|p| {
