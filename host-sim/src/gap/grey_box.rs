@@ -17,7 +17,7 @@
 //!    least [`MIN_GAIN`] of what is left, at most [`MAX_FREE`] ratios (a
 //!    small, identifiable subset; the others stay 1), and only while the
 //!    residual left implies a gap of at least
-//!    [`super::policy::CLEAN_GAP`] (what clean runs show).
+//!    [`super::measure::CLEAN_GAP`] (what clean runs show).
 //! 3. **Fit**: Levenberg-Marquardt on the subset to convergence.
 //! 4. **Intervals**: cov(theta) = s^2 (J^T J)^-1 at the estimate, with
 //!    s^2 = RSS / (N - p) and inflated by (1 + rho) / (1 - rho), rho the
@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::lsq::{self, levenberg_marquardt, noise_floor, normal_step};
-use super::policy::CLEAN_GAP;
+use super::measure::CLEAN_GAP;
 use super::run::Run;
 use crate::model::effects::{Effects, ParameterRatios, RATIO_BOUNDS, RATIO_KEYS};
 use crate::model::params;

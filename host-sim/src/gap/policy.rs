@@ -5,14 +5,11 @@
 
 use super::candidates::{CandidateFit, PairFit};
 use super::diagnosis::{Candidate, Verdict};
-use super::measure::Shrink;
+use super::measure::{Shrink, CLEAN_GAP};
 use crate::model::effects::EffectKind;
 
 /// Nominal gap (pooled over all runs) below which the verdict is `none`.
 pub const NONE_GAP: f64 = 1.0;
-/// The gap clean runs show (0.3 to 0.6 on realistic sensors): a model that
-/// leaves less has nothing left to explain.
-pub const CLEAN_GAP: f64 = 0.5;
 /// Smallest shrink, on the fit and on the check runs, that explains a gap.
 pub const MIN_SHRINK: f64 = 0.3;
 /// Extra shrink of the remaining gap a second effect must give (fit and check).
