@@ -7,7 +7,7 @@ use dca_core::controller::ControllerKind;
 use host_sim::gap::diagnose::Options;
 use host_sim::gap::run_gap;
 use host_sim::gap::validation::{check_scenario, fit_scenario, rig_log};
-use host_sim::model::effects::Effects;
+use host_sim::model::effects::{EffectKind, Effects};
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dca-gap-{name}-{}", std::process::id()));
@@ -53,7 +53,17 @@ fn json_report_has_the_contract_fields() {
     assert_eq!(c["effect"], "leakage");
     assert!(c["params"]["g_m3pspa"].as_f64().unwrap() > 0.0);
     assert!(c["fit_shrink"].is_number() && c["check_shrink"].is_number());
-    assert_eq!(v["candidates"].as_array().unwrap().len(), 8);
+    // Every effect of docs/model.md section 12 is tried, the two outside
+    // the catalogue included.
+    let all = v["candidates"].as_array().unwrap();
+    assert_eq!(all.len(), EffectKind::ALL.len());
+    for k in ["sensor_calibration", "parameters"] {
+        assert!(all.iter().any(|c| c["effect"] == k), "{k} tried");
+    }
+    // The welcome fields: which form held, the subsystem, the re-estimate.
+    assert_eq!(v["form"], "named");
+    assert_eq!(v["subsystem"], "seals");
+    assert!(v["parameters"].is_array());
     let w = &v["where"][0];
     for key in ["channel", "run", "t0_s", "t1_s", "label", "share"] {
         assert!(!w[key].is_null(), "where.{key}");

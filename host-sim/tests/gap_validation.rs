@@ -2,10 +2,16 @@
 //! for at least 90 % of the single-effect cases and `none` for clean runs;
 //! at least 50 % shrink of the gap on the held-out check runs wherever the
 //! verdict is right and the check runs show a gap beyond the noise. The
-//! table is written to target/gap-validation.md.
+//! re-estimate of the nominal parameters must not absorb a named effect
+//! (entrained air depends on pressure, a wrong bulk modulus does not): no
+//! case with a named effect comes out `parameters`, every `air` case comes
+//! out `air`, and where the rig's parameters are off the re-estimate finds
+//! the parameter that is off. The table is written to
+//! target/gap-validation.md.
 
 use host_sim::gap::diagnose::Options;
 use host_sim::gap::validation::{cases, publish, run_suite};
+use host_sim::model::effects::{EffectKind, RATIO_KEYS};
 
 #[test]
 fn gap_validation_suite() {
@@ -32,5 +38,47 @@ fn gap_validation_suite() {
             c.after,
             c.shrink * 100.0
         );
+    }
+    // `parameters` does not absorb a named effect.
+    for o in out
+        .iter()
+        .filter(|o| !o.case.truth.is_empty() && !o.case.truth.contains(&EffectKind::Parameters))
+    {
+        assert!(
+            o.diagnosis.verdict != EffectKind::Parameters.name(),
+            "{}: came out `parameters`",
+            o.case.name
+        );
+    }
+    for o in out.iter().filter(|o| o.case.truth == [EffectKind::Air]) {
+        assert!(
+            o.diagnosis.verdict == "air",
+            "{}: came out `{}`, not `air`",
+            o.case.name,
+            o.diagnosis.verdict
+        );
+    }
+    // Where the parameters are off, the re-estimate finds the one that is
+    // (within 5 % of its true ratio).
+    for o in out
+        .iter()
+        .filter(|o| o.case.truth == [EffectKind::Parameters])
+    {
+        let truth = o
+            .case
+            .effects
+            .parameters
+            .expect("a parameters case")
+            .to_array();
+        for (i, r) in truth.iter().enumerate().filter(|(_, r)| **r != 1.0) {
+            let key = RATIO_KEYS[i][0];
+            let e = o.diagnosis.parameters.iter().find(|e| e.key == key);
+            assert!(
+                e.is_some_and(|e| (e.ratio / r - 1.0).abs() <= 0.05),
+                "{}: {key} (ratio {r}) re-estimated as {:?}",
+                o.case.name,
+                e.map(|e| (e.ratio, e.ci95))
+            );
+        }
     }
 }

@@ -1,6 +1,9 @@
 //! The fits of a diagnosis: every effect of docs/model.md section 12 fitted on the
 //! fit runs and evaluated on the check runs, and the search for a second
-//! effect on top of the best ones.
+//! effect on top of the best ones. The catalogue's named forms are fitted by
+//! a bounded search ([`super::fit`]); `sensor_calibration` by least squares
+//! ([`super::calibrate`]) and `parameters` by a grey-box re-estimate
+//! ([`super::grey_box`]).
 
 use std::collections::BTreeMap;
 
@@ -8,9 +11,11 @@ use rayon::prelude::*;
 
 use super::diagnosis::Candidate;
 use super::fit::{minimize, Bound};
+use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
 use super::progress::Progress;
 use super::run::Run;
+use super::{calibrate, grey_box};
 use crate::model::effects::{EffectKind, Effects};
 use crate::model::plant::Plant;
 
@@ -34,6 +39,9 @@ pub struct CandidateFit {
     pub candidate: Candidate,
     /// The effect with its fitted parameters.
     pub effects: Effects,
+    /// For `parameters`: whether the re-estimate is plausible
+    /// ([`grey_box::PLAUSIBLE`], none at a bound); true for the others.
+    pub plausible: bool,
 }
 
 /// Two effects fitted jointly.
@@ -132,21 +140,29 @@ impl Fitter<'_> {
         let mut cands: Vec<CandidateFit> = EffectKind::ALL
             .par_iter()
             .map(|&k| {
-                let f = self.fit_effect(k);
+                let (f, form, estimates, plausible) = self.fit_kind(k);
                 let after_check = gap(self.check, self.base, &f.effects, self.dt_s);
                 progress.done(k.name());
+                let mut params = params_map(&f.effects, k);
+                if let Some(est) = &estimates {
+                    params = estimate_params(est);
+                }
                 CandidateFit {
                     kind: k,
                     candidate: Candidate {
                         effect: k.name().to_string(),
-                        params: params_map(&f.effects, k),
+                        form,
+                        subsystem: k.subsystem().to_string(),
+                        params,
                         fit_shrink: Shrink::new(before_fit, f.gap).shrink,
                         check_shrink: Shrink::new(before_check, after_check).shrink,
                         fit_after: f.gap,
                         check_after: after_check,
                         evals: f.evals,
+                        parameters: estimates,
                     },
                     effects: f.effects,
+                    plausible,
                 }
             })
             .collect();
@@ -154,15 +170,65 @@ impl Fitter<'_> {
         cands
     }
 
+    /// Fit one candidate on the fit runs: its effects and gap, the form that
+    /// held, the re-estimated parameters (`parameters` only) and whether
+    /// they are plausible.
+    fn fit_kind(&self, k: EffectKind) -> (Fitted, String, Option<Vec<Estimate>>, bool) {
+        let nominal = || Fitted {
+            effects: Effects::NONE,
+            gap: gap(self.fit, self.base, &Effects::NONE, self.dt_s),
+            evals: 1,
+        };
+        match k {
+            EffectKind::SensorCalibration => match calibrate::fit(self.fit, self.base, self.dt_s) {
+                Some(c) => (
+                    Fitted {
+                        effects: c.effects,
+                        gap: c.gap,
+                        evals: c.evals,
+                    },
+                    c.form,
+                    None,
+                    true,
+                ),
+                None => (nominal(), "none fitted".into(), None, true),
+            },
+            EffectKind::Parameters => match grey_box::fit(self.fit, self.base, self.dt_s) {
+                Some(g) => {
+                    let keys: Vec<&str> = g.estimates.iter().map(|e| e.key.as_str()).collect();
+                    let form = if keys.is_empty() {
+                        "grey-box re-estimate: no parameter lowers the residual".to_string()
+                    } else {
+                        format!("grey-box re-estimate of {}", keys.join(", "))
+                    };
+                    (
+                        Fitted {
+                            effects: g.effects,
+                            gap: gap(self.fit, self.base, &g.effects, self.dt_s),
+                            evals: g.evals + 1,
+                        },
+                        form,
+                        Some(g.estimates),
+                        g.plausible,
+                    )
+                }
+                None => (nominal(), "none fitted".into(), Some(Vec::new()), false),
+            },
+            _ => (self.fit_effect(k), "named".into(), None, true),
+        }
+    }
+
     /// The best pair: each of the two best single candidates with every other
-    /// effect, screened on the start point and the coarse grid only, the best
-    /// of them refitted jointly and evaluated on the check runs.
+    /// effect of the catalogue, screened on the start point and the coarse
+    /// grid only, the best of them refitted jointly (a first candidate outside
+    /// the catalogue, `sensor_calibration` or `parameters`, keeps its fit)
+    /// and evaluated on the check runs.
     pub fn best_pair(&self, ranked: &[CandidateFit]) -> Option<PairFit> {
         let tries: Vec<(&CandidateFit, EffectKind)> = ranked
             .iter()
             .take(2)
             .flat_map(|c| {
-                EffectKind::ALL
+                EffectKind::CATALOGUE
                     .into_iter()
                     .filter(move |k| *k != c.kind)
                     .map(move |k2| (c, k2))
@@ -178,7 +244,11 @@ impl Fitter<'_> {
         let (first, second, start) = screened
             .into_iter()
             .min_by(|a, b| a.2.gap.total_cmp(&b.2.gap))?;
-        let joint = self.fit_effects(&start.effects, &[first, second], 2 * self.max_evals);
+        let free: Vec<EffectKind> = [first, second]
+            .into_iter()
+            .filter(|k| EffectKind::CATALOGUE.contains(k))
+            .collect();
+        let joint = self.fit_effects(&start.effects, &free, 2 * self.max_evals);
         Some(PairFit {
             first,
             second,
@@ -199,8 +269,29 @@ fn grid_size(kind: EffectKind) -> usize {
     }
 }
 
-/// The parameters of `kind` in `e` by name.
+/// The re-estimated parameters as candidate parameters: each key with its
+/// value and its 95 % interval (`<key>`, `<key>_ci95_lo`, `<key>_ci95_hi`).
+pub fn estimate_params(est: &[Estimate]) -> BTreeMap<String, f64> {
+    let mut m = BTreeMap::new();
+    for e in est {
+        m.insert(e.key.clone(), e.value);
+        m.insert(format!("{}_ci95_lo", e.key), e.ci95[0]);
+        m.insert(format!("{}_ci95_hi", e.key), e.ci95[1]);
+    }
+    m
+}
+
+/// The parameters of `kind` in `e` by name (for `sensor_calibration` the
+/// offset carries its channel's unit: `offset_m`, `offset_pa`, `offset_n`).
 pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
+    if let (EffectKind::SensorCalibration, Some(c)) = (kind, e.sensor_calibration) {
+        return BTreeMap::from([
+            ("channel".to_string(), c.channel.index() as f64),
+            ("gain_1".to_string(), c.gain_1),
+            (format!("offset_{}", c.channel.unit()), c.offset_si),
+            ("quad_1".to_string(), c.quad_1),
+        ]);
+    }
     kind.params()
         .iter()
         .zip(e.get(kind).unwrap_or_default())

@@ -129,12 +129,20 @@ fn conclude(
             c.check = Shrink::new(n.check, chosen.candidate.check_after);
             c.effects = chosen.effects;
             let runner_up = ranked.iter().find(|x| x.kind != chosen.kind);
-            reasons::explained(
+            let mut r = reasons::explained(
                 &chosen.candidate,
                 runner_up.map(|x| &x.candidate),
                 policy::check_within_noise(n.check),
                 n.check,
-            )
+            );
+            if let Some(p) = ranked.iter().find(|x| {
+                x.kind == EffectKind::Parameters
+                    && x.kind != chosen.kind
+                    && x.candidate.fit_shrink >= chosen.candidate.fit_shrink
+            }) {
+                r.push_str(&reasons::parameters_set_aside(&p.candidate, p.plausible));
+            }
+            r
         }
     };
     if let (Some(p), Some(s)) = (pair, decision.second) {
@@ -209,8 +217,16 @@ pub fn diagnose(
             .collect()
     };
     let elapsed_s = t0.elapsed().as_secs_f64();
+    let verdict_candidate = decision.chosen.map(|i| &ranked[i].candidate);
     let diag = Diagnosis {
         verdict: decision.verdict,
+        form: verdict_candidate.map(|c| c.form.clone()),
+        subsystem: verdict_candidate.map(|c| c.subsystem.clone()),
+        parameters: ranked
+            .iter()
+            .find(|c| c.kind == EffectKind::Parameters)
+            .and_then(|c| c.candidate.parameters.clone())
+            .unwrap_or_default(),
         gap_metric: GAP_METRIC.into(),
         fit: c.fit,
         check: c.check,

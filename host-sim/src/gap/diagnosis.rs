@@ -7,6 +7,7 @@ use std::fmt;
 
 use serde::{Serialize, Serializer};
 
+use super::grey_box::Estimate;
 use super::measure::Shrink;
 use super::replay::Replay;
 use super::run::Run;
@@ -72,6 +73,12 @@ impl PartialEq<&str> for Verdict {
 pub struct Candidate {
     /// Identifier of docs/model.md section 12.
     pub effect: String,
+    /// Which model of the effect was fitted: `named` (the catalogue's
+    /// parametric form), the map of a `sensor_calibration`, the parameters
+    /// a `parameters` re-estimate fitted.
+    pub form: String,
+    /// The part of the rig: seals, servo, oil, sensors, hose, accumulator, plant.
+    pub subsystem: String,
     /// Fitted parameters, names with units.
     pub params: BTreeMap<String, f64>,
     /// Shrink on the fit runs.
@@ -84,6 +91,9 @@ pub struct Candidate {
     pub check_after: f64,
     /// Objective evaluations the fit used.
     pub evals: usize,
+    /// `parameters` only: the re-estimated parameters with their intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parameters: Option<Vec<Estimate>>,
 }
 
 /// A part of a run that carries the gap.
@@ -161,6 +171,14 @@ pub struct Combined {
 pub struct Diagnosis {
     /// Effect identifier, `none` or `unexplained`.
     pub verdict: Verdict,
+    /// Which model of the verdict's effect held (its candidate's `form`;
+    /// absent for `none` and `unexplained`).
+    pub form: Option<String>,
+    /// The part of the rig of the verdict's effect.
+    pub subsystem: Option<String>,
+    /// The grey-box re-estimate of the nominal parameters (the `parameters`
+    /// candidate's, whatever the verdict), with 95 % intervals.
+    pub parameters: Vec<Estimate>,
     /// What the gap measures.
     pub gap_metric: String,
     /// Fit runs: before, after, shrink.

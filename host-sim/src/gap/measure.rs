@@ -15,6 +15,10 @@ the residual (measured minus the nominal model replayed on the recorded drive co
 expected white-noise part removed, each in units of that channel's noise level estimated from the \
 log (dimensionless; 0 = agreement within the noise)";
 
+/// The gap clean runs show (0.3 to 0.6 on realistic sensors): a model that
+/// leaves less has nothing left to explain (used by [`super::policy`] and
+/// [`super::grey_box`]).
+pub const CLEAN_GAP: f64 = 0.5;
 /// Samples per block of the block-mean residual.
 pub const BLOCK: usize = 10;
 /// Before, after and shrink of one set of runs.

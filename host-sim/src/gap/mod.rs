@@ -16,7 +16,10 @@
 //! 3. **Attribute** ([`candidates`]): every effect of docs/model.md section 12 is
 //!    added in turn, its parameters fitted on the fit runs only ([`fit`],
 //!    starting points from [`prefit`]); the effects are ranked by the shrink of
-//!    the gap, and a second effect is tried on top of the best.
+//!    the gap, and a second effect is tried on top of the best;
+//!    `sensor_calibration` is fitted by least squares ([`calibrate`]) and
+//!    `parameters` by a grey-box re-estimate with intervals ([`grey_box`],
+//!    [`lsq`]).
 //! 4. **Validate** ([`policy`], [`reasons`]): the chosen effect with its fitted
 //!    parameters on the check runs: before, after, shrink; `none` within the
 //!    noise, `unexplained` when no effect shrinks the gap on both.
@@ -26,11 +29,14 @@
 //! [`diagnose`] runs the steps; [`validation`] is its suite of synthetic runs
 //! with hidden effects.
 
+pub mod calibrate;
 pub mod candidates;
 pub mod diagnose;
 pub mod diagnosis;
 pub mod fit;
+pub mod grey_box;
 pub mod localise;
+pub mod lsq;
 pub mod measure;
 pub mod policy;
 pub mod prefit;

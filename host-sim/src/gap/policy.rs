@@ -4,8 +4,8 @@
 //! ([`super::candidates`]).
 
 use super::candidates::{CandidateFit, PairFit};
-use super::diagnosis::Verdict;
-use super::measure::Shrink;
+use super::diagnosis::{Candidate, Verdict};
+use super::measure::{Shrink, CLEAN_GAP};
 use crate::model::effects::EffectKind;
 
 /// Nominal gap (pooled over all runs) below which the verdict is `none`.
@@ -14,6 +14,48 @@ pub const NONE_GAP: f64 = 1.0;
 pub const MIN_SHRINK: f64 = 0.3;
 /// Extra shrink of the remaining gap a second effect must give (fit and check).
 pub const SECOND_SHRINK: f64 = 0.3;
+/// `parameters` against a named effect that also explains the gap: the
+/// re-estimate wins only when it leaves at most (1 - PARAMS_MARGIN) times
+/// the effect's gap ([`params_clearly_better`]). A named effect that holds
+/// about as well wins (a wrong bulk modulus must not absorb entrained air).
+pub const PARAMS_MARGIN: f64 = 0.1;
+
+/// Whether the `parameters` re-estimate `p` beats the named effect `e` when
+/// both explain the gap: it leaves the check runs below (1 -
+/// [`PARAMS_MARGIN`]) times `e`'s gap there; or, when both leave the check
+/// runs within the noise (they cannot tell the two apart), `e` leaves more
+/// on the fit runs than clean runs show ([`CLEAN_GAP`]) and `p` leaves
+/// below (1 - [`PARAMS_MARGIN`]) times it. Ties go to the named effect: re-estimating
+/// parameters must not absorb it.
+pub fn params_clearly_better(p: &Candidate, e: &Candidate) -> bool {
+    let clearly = |p: f64, e: f64| p < (1.0 - PARAMS_MARGIN) * e;
+    if clearly(p.check_after, e.check_after) {
+        return true;
+    }
+    p.check_after < NONE_GAP
+        && e.check_after < NONE_GAP
+        && e.fit_after >= CLEAN_GAP
+        && clearly(p.fit_after, e.fit_after)
+}
+
+/// A pair's gaps as a candidate's, for [`params_clearly_better`].
+fn pair_gaps(pair: Option<&PairFit>) -> Candidate {
+    let (fit_after, check_after) = pair.map_or((f64::INFINITY, f64::INFINITY), |p| {
+        (p.fit_after, p.check_after)
+    });
+    Candidate {
+        effect: String::new(),
+        form: String::new(),
+        subsystem: String::new(),
+        params: Default::default(),
+        fit_shrink: 0.0,
+        check_shrink: 0.0,
+        fit_after,
+        check_after,
+        evals: 0,
+        parameters: None,
+    }
+}
 
 /// The held-out runs confirm a model change that took their gap from
 /// `before` to `after`: it shrinks by at least `min_shrink`, or it ends
@@ -63,10 +105,17 @@ pub struct Decision {
 /// Decide on the ranked candidates (best first) and the pair, given the
 /// nominal gaps: pooled over all runs, of the fit runs and of the check runs.
 ///
-/// `none` when the pooled gap is within the noise; else the best single
-/// effect when it shrinks the gap by [`MIN_SHRINK`] on the fit runs and the
-/// check runs confirm it ([`confirms`]); else the pair's first effect when
-/// the pair does so together; else `unexplained`.
+/// `none` when the pooled gap is within the noise. Else a candidate
+/// *explains* the gap when it shrinks it by [`MIN_SHRINK`] on the fit runs
+/// and the check runs confirm it ([`confirms`]); `parameters` must moreover
+/// be plausible (every ratio within [`super::grey_box::PLAUSIBLE`], none at
+/// its bound). Of the best candidate other than `parameters` (E) and the
+/// `parameters` candidate (P): both explain: P only when it is clearly
+/// better ([`params_clearly_better`]), else E; only E explains: E; only P
+/// explains: P, unless a pair of two named effects explains the gap too and
+/// P is not clearly better than the pair (then the pair's first effect);
+/// neither: the pair's first effect when the pair explains the gap
+/// together; else `unexplained`.
 pub fn decide(
     pooled: f64,
     before_fit: f64,
@@ -85,12 +134,46 @@ pub fn decide(
         Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
             && confirms(before_check, check_after, MIN_SHRINK)
     };
-    let best = &ranked[0].candidate;
-    let chosen = if explains(best.fit_after, best.check_after) {
-        Some(0)
-    } else {
-        pair.filter(|p| explains(p.fit_after, p.check_after))
-            .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
+    let holds = |i: &usize| {
+        let c = &ranked[*i];
+        c.plausible && explains(c.candidate.fit_after, c.candidate.check_after)
+    };
+    let effect = ranked
+        .iter()
+        .position(|c| c.kind != EffectKind::Parameters)
+        .filter(holds);
+    let params = ranked
+        .iter()
+        .position(|c| c.kind == EffectKind::Parameters)
+        .filter(holds);
+    let pair_choice = pair
+        .filter(|p| explains(p.fit_after, p.check_after))
+        .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
+        .filter(|i| ranked[*i].plausible);
+    let named_pair = pair_choice.filter(|_| {
+        pair.is_some_and(|p| {
+            p.first != EffectKind::Parameters && p.second != EffectKind::Parameters
+        })
+    });
+    let chosen = match (effect, params) {
+        (Some(e), Some(p)) => Some(
+            if params_clearly_better(&ranked[p].candidate, &ranked[e].candidate) {
+                p
+            } else {
+                e
+            },
+        ),
+        (Some(i), None) => Some(i),
+        (None, Some(i)) => {
+            // Two named effects together that explain the gap as well as
+            // the re-estimate: an added effect is needed after all.
+            let c = &ranked[i].candidate;
+            match named_pair {
+                Some(j) if !params_clearly_better(c, &pair_gaps(pair)) => Some(j),
+                _ => Some(i),
+            }
+        }
+        (None, None) => pair_choice,
     };
     let verdict = chosen.map_or(Verdict::Unexplained, |i| Verdict::Effect(ranked[i].kind));
     let second = pair.map(|p| {
@@ -124,5 +207,39 @@ pub fn decide(
         verdict,
         chosen,
         second,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cand(fit_after: f64, check_after: f64) -> Candidate {
+        Candidate {
+            effect: "x".into(),
+            form: "named".into(),
+            subsystem: "plant".into(),
+            params: Default::default(),
+            fit_shrink: 0.0,
+            check_shrink: 0.0,
+            fit_after,
+            check_after,
+            evals: 1,
+            parameters: None,
+        }
+    }
+
+    #[test]
+    fn parameters_win_only_when_clearly_better() {
+        // Clearly lower on excited check runs.
+        assert!(params_clearly_better(&cand(0.4, 1.0), &cand(0.4, 2.0)));
+        // About as good on the check runs: the named effect.
+        assert!(!params_clearly_better(&cand(0.3, 1.9), &cand(2.0, 2.0)));
+        // Both check runs within the noise: the fit runs decide, when the
+        // effect leaves a gap there.
+        assert!(params_clearly_better(&cand(0.3, 0.47), &cand(0.8, 0.45)));
+        assert!(!params_clearly_better(&cand(0.75, 0.47), &cand(0.8, 0.45)));
+        // ... but not where the effect leaves no more than clean runs show.
+        assert!(!params_clearly_better(&cand(0.28, 0.47), &cand(0.45, 0.45)));
     }
 }

@@ -4,7 +4,7 @@
 use super::candidates::PairFit;
 use super::diagnosis::Candidate;
 use super::measure::Shrink;
-use super::policy::{MIN_SHRINK, NONE_GAP};
+use super::policy::{MIN_SHRINK, NONE_GAP, PARAMS_MARGIN};
 use crate::model::effects::EffectKind;
 
 /// The verdict `none`.
@@ -78,4 +78,27 @@ pub fn second_added(other: EffectKind, fit_extra: f64, check_extra: f64) -> Stri
         fit_extra * 100.0,
         check_extra * 100.0
     )
+}
+
+/// The addition when the verdict is a named effect although the
+/// `parameters` re-estimate `p` shrinks the fit runs' gap at least as much:
+/// why it was set aside (implausible ratios, or the effect holds as well on
+/// the check runs).
+pub fn parameters_set_aside(p: &Candidate, plausible: bool) -> String {
+    if plausible {
+        format!(
+            "; re-estimating the parameters ({}) shrinks the gap by {:.0} % / {:.0} %, but not clearly more than the named effect (it must leave at most {:.0} % of the effect's gap on the check runs, or on the fit runs where both keep the check runs within the noise), so the effect is preferred",
+            p.form,
+            p.fit_shrink * 100.0,
+            p.check_shrink * 100.0,
+            (1.0 - PARAMS_MARGIN) * 100.0
+        )
+    } else {
+        format!(
+            "; the parameter re-estimate ({}) shrinks the gap by {:.0} % / {:.0} % but is implausible (a ratio at its bound or beyond 0.5-2 times nominal), so it is set aside",
+            p.form,
+            p.fit_shrink * 100.0,
+            p.check_shrink * 100.0
+        )
+    }
 }

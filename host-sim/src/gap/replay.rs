@@ -9,9 +9,13 @@
 //! the first encoder count and the measured position and load averaged over
 //! the first 20 ms while the encoder has not moved. The outputs are what ideal sensors
 //! (with the candidate `sensor_delay`, if any) would have reported at the log
-//! instants, for the channels the gap compares.
+//! instants, for the channels the gap compares. Under a candidate
+//! `sensor_calibration` the replay reads through its map, and starts from
+//! (and, for the force sensor, is driven by) the true values its inverse
+//! gives of the recorded ones.
 
 use crate::io::runlog::RunLog;
+use crate::model::effects::CalChannel;
 use crate::model::rig::Rig;
 use crate::model::sensors::{Readings, SensorMode, Sensors};
 
@@ -92,14 +96,27 @@ pub fn replay_visit(
         .count()
         .max(1);
     let start = |v: &[f64]| super::stats::mean(&v[..still.min(v.len())]);
-    let (ft0, xo0) = (start(load), start(&log.xo_m));
+    let (mut ft0, mut xi0, mut xo0) = (start(load), xi0, start(&log.xo_m));
+    let cal = rig.effects().sensor_calibration;
+    // The true value of a recorded one on the calibrated channel.
+    let truth = |ch: CalChannel, v: f64| match cal {
+        Some(c) if c.channel == ch => c.invert(v),
+        _ => v,
+    };
+    ft0 = truth(CalChannel::Ft, ft0);
+    xi0 = truth(CalChannel::Xi, xi0);
+    xo0 = truth(CalChannel::Xo, xo0);
     let mut s = rig.rest_state(ft0, xi0, xo0);
     let mut sensors = Sensors::new(SensorMode::Ideal, 0);
     if let Some(d) = &rig.effects().sensor_delay {
         sensors = sensors.with_delay(d, log_dt);
     }
+    if let Some(c) = &cal {
+        sensors = sensors.with_calibration(c);
+    }
     let mut diverged = false;
     for (k, (&ft, &vcmd)) in load.iter().zip(&log.vcmd_mps).enumerate() {
+        let ft = truth(CalChannel::Ft, ft);
         if diverged {
             if !visit(k, [f64::NAN; 4]) {
                 return;

@@ -127,10 +127,37 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             if s.significant { "significant" } else { "not significant" }
         );
     }
+    if let (Some(form), Some(sub)) = (&d.form, &d.subsystem) {
+        let _ = writeln!(md, "Form that held: {form} (subsystem: {sub}).\n");
+    }
+    if !d.parameters.is_empty() {
+        let _ = writeln!(
+            md,
+            "## Re-estimated parameters (`parameters`, grey box, fit runs)\n\n\
+             95 % intervals from s^2 (J^T J)^-1 at the estimate, J the Jacobian of the 10 ms \
+             block-mean residuals in ln(value), s^2 their mean square, inflated for their lag-1 \
+             autocorrelation.\n\n\
+             | parameter | nominal | re-estimate | 95 % interval | ratio | at bound |\n|---|---|---|---|---|---|"
+        );
+        for e in &d.parameters {
+            let _ = writeln!(
+                md,
+                "| `{}` | {:.4e} | {:.4e} | {:.4e} .. {:.4e} | {:.3} | {} |",
+                e.key,
+                e.nominal,
+                e.value,
+                e.ci95[0],
+                e.ci95[1],
+                e.ratio,
+                if e.at_bound { "yes" } else { "no" }
+            );
+        }
+        let _ = writeln!(md);
+    }
     let _ = writeln!(md, "## Candidates (fitted on the fit runs only)\n");
     let _ = writeln!(
         md,
-        "| rank | effect | fitted parameters | fit shrink | check shrink |\n|---|---|---|---|---|"
+        "| rank | effect | form | fitted parameters | fit shrink | check shrink |\n|---|---|---|---|---|---|"
     );
     for (i, c) in d.candidates.iter().enumerate() {
         let params: Vec<String> = c
@@ -140,9 +167,10 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             .collect();
         let _ = writeln!(
             md,
-            "| {} | `{}` | {} | {:.0} % | {:.0} % |",
+            "| {} | `{}` | {} | {} | {:.0} % | {:.0} % |",
             i + 1,
             c.effect,
+            c.form,
             params.join(", "),
             c.fit_shrink * 100.0,
             c.check_shrink * 100.0

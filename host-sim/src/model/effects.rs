@@ -15,9 +15,12 @@
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
+//! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
+//! | `parameters` | the rig's nominal parameters off by ratios ([`ParameterRatios`]): the plant is built with them ([`ParameterRatios::apply`]) | `m_kg_ratio`, `beta_e_pa_ratio`, `hose_c_ratio` (the hose wall's three compliances), `c_visc_ratio`, `tau_m_ratio`, `p_acc0_ratio`, `aa_ratio` (both actuating-piston areas); all typ. 1 |
 //!
 //! With every effect off the plant is exactly the nominal model of docs/model.md.
 
+use dca_core::params::PlantParams;
 use serde::Deserialize;
 
 /// Internal leakage across the pistons.
@@ -149,6 +152,207 @@ pub struct AccumulatorThermal {
 /// Ambient (and initial) gas temperature, K.
 pub const T_AMBIENT_K: f64 = 293.15;
 
+/// The channel a [`SensorCalibration`] acts on.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum CalChannel {
+    /// The LVDT, Xo.
+    #[serde(rename = "xo_m")]
+    Xo,
+    /// The encoder, Xi.
+    #[serde(rename = "xi_m")]
+    Xi,
+    /// Line-1 pressure.
+    #[serde(rename = "p1_pa")]
+    P1,
+    /// Line-2 pressure.
+    #[serde(rename = "p2_pa")]
+    P2,
+    /// The load force sensor.
+    #[serde(rename = "ft_n")]
+    Ft,
+}
+
+impl CalChannel {
+    /// Every channel, in index order.
+    pub const ALL: [Self; 5] = [Self::Xo, Self::Xi, Self::P1, Self::P2, Self::Ft];
+
+    /// The run-log column (`xo_m`, `xi_m`, `p1_pa`, `p2_pa`, `ft_n`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Xo => "xo_m",
+            Self::Xi => "xi_m",
+            Self::P1 => "p1_pa",
+            Self::P2 => "p2_pa",
+            Self::Ft => "ft_n",
+        }
+    }
+
+    /// The SI unit suffix of the channel's values (`m`, `pa`, `n`).
+    pub fn unit(self) -> &'static str {
+        match self {
+            Self::Xo | Self::Xi => "m",
+            Self::P1 | Self::P2 => "pa",
+            Self::Ft => "n",
+        }
+    }
+
+    /// Index (0 to 4, [`Self::ALL`] order).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The channel of an index, if any.
+    pub fn from_index(i: usize) -> Option<Self> {
+        Self::ALL.get(i).copied()
+    }
+
+    /// Full scale of the sensor, SI: the LVDT's and the stroke's 0.12 m,
+    /// the pressure sensors' 10 MPa, the force sensor's 4000 N
+    /// (docs/model.md section 5).
+    pub fn span(self) -> f64 {
+        match self {
+            Self::Xo | Self::Xi => 0.12,
+            Self::P1 | Self::P2 => 10.0e6,
+            Self::Ft => 4000.0,
+        }
+    }
+}
+
+/// A static calibration error of one sensor: it records
+/// `offset_si + gain_1 v + quad_1 v^2 / span` for the true value `v`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorCalibration {
+    /// The sensor.
+    pub channel: CalChannel,
+    /// Gain (1: right).
+    #[serde(default = "one")]
+    pub gain_1: f64,
+    /// Offset, in the channel's SI unit (m, Pa or N).
+    #[serde(default)]
+    pub offset_si: f64,
+    /// Quadratic nonlinearity: the deviation at full scale as a share of it.
+    #[serde(default)]
+    pub quad_1: f64,
+}
+
+impl SensorCalibration {
+    /// The recorded value of the true value `v`.
+    pub fn map(&self, v: f64) -> f64 {
+        self.offset_si + self.gain_1 * v + self.quad_1 * v * v / self.channel.span()
+    }
+
+    /// The true value of the recorded value `y` (the root of [`Self::map`]
+    /// next to the affine inverse; Newton steps).
+    pub fn invert(&self, y: f64) -> f64 {
+        let mut v = (y - self.offset_si) / self.gain_1;
+        let span = self.channel.span();
+        for _ in 0..4 {
+            let slope = self.gain_1 + 2.0 * self.quad_1 * v / span;
+            if slope.abs() < 1e-9 {
+                break;
+            }
+            v -= (self.map(v) - y) / slope;
+        }
+        v
+    }
+}
+
+/// The rig's nominal parameters off by ratios (1: nominal): the diagnosis's
+/// grey-box re-estimate (`parameters`). To set a simulated rig's parameters
+/// directly, `[plant.params]` is the way; this is that same change as an
+/// effect, so that a candidate is one [`Effects`].
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterRatios {
+    /// Actuating piston and load mass, `m_kg`.
+    #[serde(default = "one")]
+    pub m_kg_ratio: f64,
+    /// Oil bulk modulus, `beta_e_pa`.
+    #[serde(default = "one")]
+    pub beta_e_pa_ratio: f64,
+    /// The hose wall's compliances `hose.ce0_m3pp`, `hose.cf0_m3pp`,
+    /// `hose.cs0_m3pp` (the inverse of its stiffness).
+    #[serde(default = "one")]
+    pub hose_c_ratio: f64,
+    /// Viscous damping, `c_visc_nspm`.
+    #[serde(default = "one")]
+    pub c_visc_ratio: f64,
+    /// Servo time constant, `tau_m_s`.
+    #[serde(default = "one")]
+    pub tau_m_ratio: f64,
+    /// Accumulator precharge (gauge), `p_acc0_pa`.
+    #[serde(default = "one")]
+    pub p_acc0_ratio: f64,
+    /// Actuating-piston areas `aa1_m2` and `aa2_m2`.
+    #[serde(default = "one")]
+    pub aa_ratio: f64,
+}
+
+/// The plant parameter keys ([`crate::model::params::KEYS`]) each ratio of
+/// [`ParameterRatios`] scales, in its order.
+pub const RATIO_KEYS: [&[&str]; 7] = [
+    &["m_kg"],
+    &["beta_e_pa"],
+    &["hose.ce0_m3pp", "hose.cf0_m3pp", "hose.cs0_m3pp"],
+    &["c_visc_nspm"],
+    &["tau_m_s"],
+    &["p_acc0_pa"],
+    &["aa1_m2", "aa2_m2"],
+];
+
+impl ParameterRatios {
+    /// All ratios 1.
+    pub const NOMINAL: Self = Self {
+        m_kg_ratio: 1.0,
+        beta_e_pa_ratio: 1.0,
+        hose_c_ratio: 1.0,
+        c_visc_ratio: 1.0,
+        tau_m_ratio: 1.0,
+        p_acc0_ratio: 1.0,
+        aa_ratio: 1.0,
+    };
+
+    /// The ratios in [`RATIO_KEYS`] order.
+    pub fn to_array(&self) -> [f64; 7] {
+        [
+            self.m_kg_ratio,
+            self.beta_e_pa_ratio,
+            self.hose_c_ratio,
+            self.c_visc_ratio,
+            self.tau_m_ratio,
+            self.p_acc0_ratio,
+            self.aa_ratio,
+        ]
+    }
+
+    /// Ratios from an array in [`RATIO_KEYS`] order.
+    pub fn from_array(a: [f64; 7]) -> Self {
+        Self {
+            m_kg_ratio: a[0],
+            beta_e_pa_ratio: a[1],
+            hose_c_ratio: a[2],
+            c_visc_ratio: a[3],
+            tau_m_ratio: a[4],
+            p_acc0_ratio: a[5],
+            aa_ratio: a[6],
+        }
+    }
+
+    /// `p` with every key of [`RATIO_KEYS`] scaled by its ratio.
+    pub fn apply(&self, p: &PlantParams) -> PlantParams {
+        let mut out = *p;
+        for (keys, r) in RATIO_KEYS.iter().zip(self.to_array()) {
+            for name in keys.iter() {
+                if let Some(k) = crate::model::params::find(name) {
+                    k.set(&mut out, k.get(p) * r);
+                }
+            }
+        }
+        out
+    }
+}
+
 /// The set of active effects (all `None`: the nominal plant).
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -169,6 +373,10 @@ pub struct Effects {
     pub hose_hysteresis: Option<HoseHysteresis>,
     /// `accumulator_thermal`.
     pub accumulator_thermal: Option<AccumulatorThermal>,
+    /// `sensor_calibration`.
+    pub sensor_calibration: Option<SensorCalibration>,
+    /// `parameters`.
+    pub parameters: Option<ParameterRatios>,
 }
 
 /// The effect identifiers of docs/model.md section 12.
@@ -190,6 +398,10 @@ pub enum EffectKind {
     HoseHysteresis,
     /// Accumulator thermal drift.
     AccumulatorThermal,
+    /// A sensor's calibration.
+    SensorCalibration,
+    /// The nominal parameters re-estimated.
+    Parameters,
 }
 
 /// One parameter of an effect: name (with unit), typical value, fit bounds.
@@ -225,7 +437,23 @@ const fn p(name: &'static str, typical: f64, min: f64, max: f64) -> ParamSpec {
 
 impl EffectKind {
     /// All effects, in the order of docs/model.md section 12.
-    pub const ALL: [Self; 8] = [
+    pub const ALL: [Self; 10] = [
+        Self::Leakage,
+        Self::Friction,
+        Self::Backlash,
+        Self::Air,
+        Self::SensorDelay,
+        Self::MotorLimit,
+        Self::HoseHysteresis,
+        Self::AccumulatorThermal,
+        Self::SensorCalibration,
+        Self::Parameters,
+    ];
+
+    /// The effects of the catalogue: each a named parametric form that the
+    /// diagnosis fits by a bounded search ([`Self::ALL`] but
+    /// `sensor_calibration` and `parameters`, which have fits of their own).
+    pub const CATALOGUE: [Self; 8] = [
         Self::Leakage,
         Self::Friction,
         Self::Backlash,
@@ -235,6 +463,21 @@ impl EffectKind {
         Self::HoseHysteresis,
         Self::AccumulatorThermal,
     ];
+
+    /// The part of the rig the effect belongs to: `seals`, `servo`,
+    /// `oil`, `sensors`, `hose`, `accumulator`, or `plant` (its nominal
+    /// parameters throughout).
+    pub fn subsystem(self) -> &'static str {
+        match self {
+            Self::Leakage | Self::Friction => "seals",
+            Self::Backlash | Self::MotorLimit => "servo",
+            Self::Air => "oil",
+            Self::SensorDelay | Self::SensorCalibration => "sensors",
+            Self::HoseHysteresis => "hose",
+            Self::AccumulatorThermal => "accumulator",
+            Self::Parameters => "plant",
+        }
+    }
 
     /// The identifier of docs/model.md section 12.
     pub fn name(self) -> &'static str {
@@ -247,6 +490,8 @@ impl EffectKind {
             Self::MotorLimit => "motor_limit",
             Self::HoseHysteresis => "hose_hysteresis",
             Self::AccumulatorThermal => "accumulator_thermal",
+            Self::SensorCalibration => "sensor_calibration",
+            Self::Parameters => "parameters",
         }
     }
 
@@ -266,6 +511,8 @@ impl EffectKind {
             Self::MotorLimit => MOTOR_LIMIT_PARAMS,
             Self::HoseHysteresis => HOSE_HYSTERESIS_PARAMS,
             Self::AccumulatorThermal => ACCUMULATOR_THERMAL_PARAMS,
+            Self::SensorCalibration => SENSOR_CALIBRATION_PARAMS,
+            Self::Parameters => PARAMETERS_PARAMS,
         }
     }
 }
@@ -300,6 +547,25 @@ const HOSE_HYSTERESIS_PARAMS: &[ParamSpec] = &[
     p("yield_pa", 1e5, 1e3, 2e6),
 ];
 const ACCUMULATOR_THERMAL_PARAMS: &[ParamSpec] = &[p("tau_s", 5.0, 0.05, 1000.0)];
+/// The offset and the nonlinearity are signed: [`Effects::validate`] checks
+/// them against the channel's span, not these bounds.
+const SENSOR_CALIBRATION_PARAMS: &[ParamSpec] = &[
+    p("channel", 0.0, 0.0, 4.0),
+    p("gain_1", 1.0, 0.5, 2.0),
+    p("offset_si", 0.0, 0.0, 0.0),
+    p("quad_1", 0.0, 0.0, 0.0),
+];
+/// Smallest and largest ratio of a re-estimated parameter.
+pub const RATIO_BOUNDS: (f64, f64) = (1.0 / 3.0, 3.0);
+const PARAMETERS_PARAMS: &[ParamSpec] = &[
+    p("m_kg_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("beta_e_pa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("hose_c_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("c_visc_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("tau_m_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("p_acc0_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    p("aa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+];
 
 impl Effects {
     /// No effect: the nominal plant.
@@ -312,6 +578,8 @@ impl Effects {
         motor_limit: None,
         hose_hysteresis: None,
         accumulator_thermal: None,
+        sensor_calibration: None,
+        parameters: None,
     };
 
     /// True when no effect is active.
@@ -356,6 +624,11 @@ impl Effects {
                 vec![h.c_m3pp, h.stuck_share, h.yield_pa]
             }
             EffectKind::AccumulatorThermal => vec![self.accumulator_thermal?.tau_s],
+            EffectKind::SensorCalibration => {
+                let c = self.sensor_calibration?;
+                vec![c.channel.index() as f64, c.gain_1, c.offset_si, c.quad_1]
+            }
+            EffectKind::Parameters => self.parameters?.to_array().to_vec(),
         })
     }
 
@@ -372,6 +645,8 @@ impl Effects {
                 EffectKind::MotorLimit => self.motor_limit = None,
                 EffectKind::HoseHysteresis => self.hose_hysteresis = None,
                 EffectKind::AccumulatorThermal => self.accumulator_thermal = None,
+                EffectKind::SensorCalibration => self.sensor_calibration = None,
+                EffectKind::Parameters => self.parameters = None,
             }
             return;
         };
@@ -427,6 +702,26 @@ impl Effects {
             EffectKind::AccumulatorThermal => {
                 self.accumulator_thermal = Some(AccumulatorThermal { tau_s: at(0) })
             }
+            EffectKind::SensorCalibration => {
+                // A channel index off the list is kept out of range as NaN
+                // gain, which `validate` refuses.
+                let ch = at(0);
+                let channel = CalChannel::from_index(ch.round().max(0.0) as usize);
+                self.sensor_calibration = Some(SensorCalibration {
+                    channel: channel.unwrap_or(CalChannel::Xo),
+                    gain_1: if channel.is_some() && ch.fract() == 0.0 {
+                        at(1)
+                    } else {
+                        f64::NAN
+                    },
+                    offset_si: at(2),
+                    quad_1: at(3),
+                })
+            }
+            EffectKind::Parameters => {
+                let a: [f64; 7] = std::array::from_fn(at);
+                self.parameters = Some(ParameterRatios::from_array(a))
+            }
         }
     }
 
@@ -471,6 +766,9 @@ impl Effects {
     /// Check every active effect's parameters.
     pub fn validate(&self) -> Result<(), EffectError> {
         for k in self.active() {
+            if k == EffectKind::SensorCalibration {
+                continue;
+            }
             let v = self.get(k).unwrap_or_default();
             for (x, s) in v.iter().zip(k.params()) {
                 let most = VALID_SPAN * s.max;
@@ -525,6 +823,24 @@ impl Effects {
         if let Some(t) = self.accumulator_thermal {
             if t.tau_s <= 0.0 {
                 return constraint(EffectKind::AccumulatorThermal, "tau_s must be > 0");
+            }
+        }
+        if let Some(c) = self.sensor_calibration {
+            let span = c.channel.span();
+            let ok = (0.1..=10.0).contains(&c.gain_1)
+                && c.offset_si.abs() <= span
+                && c.quad_1.abs() <= 1.0;
+            if !ok {
+                return constraint(
+                    EffectKind::SensorCalibration,
+                    "channel must be 0 to 4, gain_1 in [0.1, 10], abs(offset_si) at most the \
+                     channel's span, abs(quad_1) at most 1",
+                );
+            }
+        }
+        if let Some(r) = self.parameters {
+            if r.to_array().iter().any(|x| *x <= 0.0) {
+                return constraint(EffectKind::Parameters, "every ratio must be > 0");
             }
         }
         Ok(())

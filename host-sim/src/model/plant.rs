@@ -432,6 +432,11 @@ impl Plant {
         })
     }
 
+    /// This plant (hose model and any GRNN hose kept) with other parameters.
+    pub fn with_params(&self, params: PlantParams) -> Self {
+        Self::build(params, self.hose_model, self.grnn_hose().cloned())
+    }
+
     /// The nominal plant: [`PlantParams::NOMINAL`] with the nonlinear hose.
     pub fn nominal() -> Self {
         Self::new(PlantParams::NOMINAL, HoseModel::Nonlinear)

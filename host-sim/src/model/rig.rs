@@ -18,7 +18,10 @@
 //!   holds a share of the hose wall's compliance while not;
 //! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
 //!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0);
-//! * `sensor_delay` acts on the readings, not here (see [`crate::model::sensors`]).
+//! * `sensor_delay` and `sensor_calibration` act on the readings, not here
+//!   (see [`crate::model::sensors`]);
+//! * `parameters` builds the plant with its parameters scaled
+//!   ([`effects::ParameterRatios::apply`]); the equations are the plant's.
 //!
 //! With no effect active [`Rig::step`] is [`Plant::step`], bit for bit.
 //! `air` and `hose_hysteresis` change the explicit pressure equation and are
@@ -77,7 +80,8 @@ impl RigState {
 pub struct Rig {
     plant: Plant,
     effects: Effects,
-    /// No effect acts on the plant's equations (none, or only `sensor_delay`):
+    /// No effect acts on the plant's equations (none, or only those on the
+    /// readings and `parameters`, which changes the plant itself):
     /// [`Rig::step`] is [`Plant::step`]. Decided once, not per step.
     plant_only: bool,
 }
@@ -108,9 +112,15 @@ impl Rig {
         }
         let plant_only = Effects {
             sensor_delay: None,
+            sensor_calibration: None,
+            parameters: None,
             ..effects
         }
         .is_none();
+        let plant = match &effects.parameters {
+            Some(r) => plant.with_params(r.apply(plant.params())),
+            None => plant,
+        };
         Ok(Self {
             plant,
             effects,
@@ -118,7 +128,7 @@ impl Rig {
         })
     }
 
-    /// The nominal plant.
+    /// The plant (with the `parameters` effect's ratios, if on).
     pub fn plant(&self) -> &Plant {
         &self.plant
     }

@@ -18,7 +18,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::model::effects::SensorDelay;
+use crate::model::effects::{CalChannel, SensorCalibration, SensorDelay};
 
 /// How sensors report the plant state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -203,12 +203,27 @@ impl Readings {
     }
 }
 
+/// `r` with the channel of `c` mapped by its calibration.
+fn calibrate(c: &SensorCalibration, r: &Readings) -> Readings {
+    let mut out = *r;
+    let v = match c.channel {
+        CalChannel::Xo => &mut out.xo_m,
+        CalChannel::Xi => &mut out.xi_m,
+        CalChannel::P1 => &mut out.p1_pa,
+        CalChannel::P2 => &mut out.p2_pa,
+        CalChannel::Ft => &mut out.ft_n,
+    };
+    *v = c.map(*v);
+    out
+}
+
 /// The sensor set of a run.
 #[derive(Clone, Debug)]
 pub struct Sensors {
     mode: SensorMode,
     rng: ChaCha8Rng,
     delay: Option<DelayLine>,
+    calibration: Option<SensorCalibration>,
 }
 
 impl Sensors {
@@ -218,7 +233,15 @@ impl Sensors {
             mode,
             rng: ChaCha8Rng::seed_from_u64(seed),
             delay: None,
+            calibration: None,
         }
+    }
+
+    /// Add the `sensor_calibration` effect: its channel records its map of
+    /// the true (delayed, for the LVDT and the pressures) value, before the ADC.
+    pub fn with_calibration(mut self, c: &SensorCalibration) -> Self {
+        self.calibration = Some(*c);
+        self
     }
 
     /// Add the `sensor_delay` effect for readings taken every `dt_s`.
@@ -249,6 +272,14 @@ impl Sensors {
             Some(d) => {
                 delayed = d.apply(truth);
                 &delayed
+            }
+            None => truth,
+        };
+        let calibrated;
+        let truth = match &self.calibration {
+            Some(c) => {
+                calibrated = calibrate(c, truth);
+                &calibrated
             }
             None => truth,
         };
@@ -292,6 +323,30 @@ mod tests {
         s.read(&r(0.0));
         let y = s.read(&r(1.0)).xo_m;
         assert!((y - (1.0 - (-1.0f64).exp())).abs() < 1e-12, "{y}");
+    }
+
+    #[test]
+    fn calibration_maps_one_channel_and_inverts() {
+        let c = SensorCalibration {
+            channel: CalChannel::P1,
+            gain_1: 1.1,
+            offset_si: -2e4,
+            quad_1: 0.05,
+        };
+        let truth = Readings {
+            xi_m: 0.01,
+            xo_m: 0.02,
+            p1_pa: 2e6,
+            p2_pa: 1e6,
+            ft_n: 100.0,
+        };
+        let r = Sensors::new(SensorMode::Ideal, 0)
+            .with_calibration(&c)
+            .read(&truth);
+        let want = -2e4 + 1.1 * 2e6 + 0.05 * 4e12 / 10e6;
+        assert!((r.p1_pa - want).abs() < 1e-6, "{}", r.p1_pa);
+        assert_eq!(Readings { p1_pa: 2e6, ..r }, truth);
+        assert!((c.invert(r.p1_pa) - 2e6).abs() < 1e-3);
     }
 
     #[test]

@@ -107,11 +107,14 @@ pub trait Observer<S: Stepper> {
 
 /// A run's sensors in `mode`, noise seeded with `seed`, with the
 /// `sensor_delay` effect of `effects` (if on) for readings taken every
-/// `tick_s` seconds (the control period).
+/// `tick_s` seconds (the control period), and its `sensor_calibration`.
 pub fn sensors(mode: SensorMode, seed: u64, effects: &Effects, tick_s: f64) -> Sensors {
     let mut sensors = Sensors::new(mode, seed);
     if let Some(d) = &effects.sensor_delay {
         sensors = sensors.with_delay(d, tick_s);
+    }
+    if let Some(c) = &effects.sensor_calibration {
+        sensors = sensors.with_calibration(c);
     }
     sensors
 }
