@@ -288,19 +288,19 @@ fn target_profile_dir() -> PathBuf {
         .to_path_buf()
 }
 
-/// The `host-sim` binary of the same profile, built if it is missing.
+/// The `host-sim` binary of the same profile, brought up to date first (a
+/// binary left from an older build would measure older code: cargo does not
+/// rebuild it for this test, which does not depend on the binary target).
 fn host_sim_bin(profile_dir: &Path) -> PathBuf {
     let bin = profile_dir.join(format!("host-sim{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let mut cmd = Command::new(cargo);
-        cmd.args(["build", "-p", "host-sim", "--bin", "host-sim"]);
-        if profile_dir.file_name().and_then(|s| s.to_str()) == Some("release") {
-            cmd.arg("--release");
-        }
-        let st = cmd.status().expect("cargo build host-sim");
-        assert!(st.success(), "building host-sim failed");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.args(["build", "-p", "host-sim", "--bin", "host-sim"]);
+    if profile_dir.file_name().and_then(|s| s.to_str()) == Some("release") {
+        cmd.arg("--release");
     }
+    let st = cmd.status().expect("cargo build host-sim");
+    assert!(st.success(), "building host-sim failed");
     bin
 }
 
