@@ -40,6 +40,21 @@
 //! The hard box always contains `d = 0` (u is kept inside the stroke), so the
 //! program is always feasible.
 //!
+//! # The compliance feedforward
+//!
+//! A load step compresses the oil and swells the hoses within a quarter of the
+//! hydraulic period (about 12 ms), faster than one MPC period plus the servo's
+//! lag. So the load read by the force sensor is also fed forward at every base
+//! tick, outside the program ([`Cmpc::compliance_ff`]): in the model of section
+//! 6.2 the static balance is `b1 y = b2 Xi - Ft`, so holding `y` under a load
+//! change `dFt` takes `dXi = dFt / b2`. A share `comp_ff` of that displacement,
+//! `u_ff = comp_ff (Ft_f - Ft_0) / b2` with `Ft_f` the load through a 3 ms
+//! low-pass (the sensor's noise), is driven at up to the servo's speed per base
+//! tick, never out of the stroke. The program sees the rest of the rig: it is
+//! given `Xi - u_ff` as the power piston's position and `u + u_ff` as the
+//! position its stroke bounds start from; its own load feedforward (`load_ff`)
+//! is a separate share through `Gamma`.
+//!
 //! # The solver and its proof
 //!
 //! `H` is symmetric positive definite (`r_w > 0`), so the minimiser `d*` is
@@ -96,6 +111,9 @@ pub struct CmpcParams {
     pub load_ff: f64,
     /// Share of the reference preview, 0 (off) to 1.
     pub preview: f64,
+    /// Share of the load's static compliance displacement fed forward at every
+    /// base tick ([`Cmpc::compliance_ff`]), 0 (off) to 1.
+    pub comp_ff: f64,
 }
 
 impl CmpcParams {
@@ -106,8 +124,9 @@ impl CmpcParams {
         ts_s: 0.01,
         rw: 10.0,
         a_max_mps2: 3.0,
-        load_ff: 1.0,
+        load_ff: 0.0,
         preview: 1.0,
+        comp_ff: 0.5,
     };
 
     /// Check the parameters against the design's bounds.
@@ -128,7 +147,10 @@ impl CmpcParams {
             (positive(self.ts_s), DesignError::SampleTime),
             (positive(self.rw), DesignError::InputWeight),
             (
-                positive(self.a_max_mps2) && share(self.load_ff) && share(self.preview),
+                positive(self.a_max_mps2)
+                    && share(self.load_ff)
+                    && share(self.preview)
+                    && share(self.comp_ff),
                 DesignError::Constraint,
             ),
         ];
@@ -163,7 +185,19 @@ pub struct CmpcGains {
     pub v_ref_max_mps: f32,
     /// Largest reference curvature the preview believes, m/s^2.
     pub a_ref_max_mps2: f32,
+    /// Compliance feedforward: power-piston displacement per newton of load
+    /// (`comp_ff / b2`), m/N.
+    pub comp_mpn: f32,
+    /// Compliance feedforward: the low-pass's gain per base tick, `dt / tau`.
+    pub ff_alpha: f32,
+    /// Compliance feedforward: its largest displacement per base tick, m.
+    pub ff_step_m: f32,
+    /// Base ticks per second, 1/s.
+    pub base_hz: f32,
 }
+
+/// Time constant of the compliance feedforward's low-pass on the load, s.
+pub const COMP_FF_TAU_S: f64 = 0.003;
 
 /// `a * b` for 4x4 row-major matrices (f64; +, * only, fixed order).
 #[inline(never)]
@@ -279,6 +313,8 @@ pub struct CmpcDesign {
     pub coef: [[f64; N_FEATURES]; N_MOVES],
     /// B2 of the prediction model, 1/s^2.
     pub b2_gain: f64,
+    /// Compliance feedforward gain `comp_ff / b2`, m/N.
+    pub comp_mpn: f64,
 }
 
 impl CmpcDesign {
@@ -364,17 +400,21 @@ impl CmpcDesign {
             h,
             coef,
             b2_gain: model.b2_gain,
+            comp_mpn: params.comp_ff / model.b2_npm,
         })
     }
 }
 
 impl CmpcGains {
     /// Design (f64) and round to the f32 run-time numbers; `lim` gives the
-    /// speed limit the preview's plausibility bounds scale with.
+    /// speed limit the preview's plausibility bounds scale with, `base_dt_s`
+    /// (> 0, as [`crate::controller::Controller::new`] checks) the base tick the
+    /// compliance feedforward runs at.
     pub fn design(
         plant: &PlantParams,
         params: CmpcParams,
         lim: &Limits,
+        base_dt_s: f64,
     ) -> Result<Self, DesignError> {
         let d = CmpcDesign::new(plant, params)?;
         let mut h_inv = [[[0.0f32; N_MOVES]; N_MOVES]; 8];
@@ -382,6 +422,7 @@ impl CmpcGains {
             *inv = to_f32_3x3(&block_inverse(&d.h, mask).ok_or(DesignError::Singular)?);
         }
         let ts = params.ts_s;
+        let dt = base_dt_s as f32;
         Ok(Self {
             h: to_f32_3x3(&d.h),
             h_inv,
@@ -395,6 +436,11 @@ impl CmpcGains {
             // (area ratio); a faster reference is a jump, not a trajectory.
             v_ref_max_mps: 2.0 * lim.v_max_mps,
             a_ref_max_mps2: (2.0 * params.a_max_mps2) as f32,
+            comp_mpn: d.comp_mpn as f32,
+            // f32 from here: the base tick's numbers need no more.
+            ff_alpha: min(dt / COMP_FF_TAU_S as f32, 1.0),
+            ff_step_m: lim.v_max_mps * dt,
+            base_hz: 1.0 / dt,
         })
     }
 }
@@ -556,6 +602,16 @@ pub struct Cmpc {
     pub ft_prev_n: f32,
     /// MPC ticks done (saturates at 2: what the differences need).
     pub ticks: u8,
+    /// Speed of the program's move in force, m/s.
+    pub v_mpc_mps: f32,
+    /// Compliance feedforward: displacement commanded so far, m.
+    pub u_ff_m: f32,
+    /// Compliance feedforward: the low-passed load, N.
+    pub ft_lp_n: f32,
+    /// Compliance feedforward: the load it started from, N.
+    pub ft0_n: f32,
+    /// Compliance feedforward: a finite load has been read.
+    pub ff_started: bool,
 }
 
 /// What one constrained MPC tick reads.
@@ -586,17 +642,19 @@ impl Cmpc {
     /// The bounds of the moves (module documentation).
     pub fn bounds(&self, g: &CmpcGains, lim: &Limits) -> ([f32; N_MOVES], [f32; N_MOVES]) {
         let v = lim.v_max_mps * g.ts_s;
+        // Where the power piston is commanded to, the feedforward's share included.
+        let u = self.u_m + self.u_ff_m;
         // The end of the first block inside the stroke (then the applied
         // first period is, too).
-        let hard_lo = max(-v, min((lim.x_min_m - self.u_m) / g.first_periods, 0.0));
-        let hard_hi = min(v, max((lim.x_max_m - self.u_m) / g.first_periods, 0.0));
+        let hard_lo = max(-v, min((lim.x_min_m - u) / g.first_periods, 0.0));
+        let hard_hi = min(v, max((lim.x_max_m - u) / g.first_periods, 0.0));
         // The soft acceleration limit gives way to the hard bounds.
         let lo1 = clamp(self.du_prev_m - g.dd_max_m, hard_lo, hard_hi);
         let hi1 = clamp(self.du_prev_m + g.dd_max_m, hard_lo, hard_hi);
         let reach_up = g.first_periods * max(hi1, 0.0);
         let reach_down = g.first_periods * min(lo1, 0.0);
-        let up = (lim.x_max_m - self.u_m - reach_up) / g.later_periods;
-        let down = (lim.x_min_m - self.u_m - reach_down) / g.later_periods;
+        let up = (lim.x_max_m - u - reach_up) / g.later_periods;
+        let down = (lim.x_min_m - u - reach_down) / g.later_periods;
         let (lo_l, hi_l) = (max(-v, min(down, 0.0)), min(v, max(up, 0.0)));
         ([lo1, lo_l, lo_l], [hi1, hi_l, hi_l])
     }
@@ -622,8 +680,9 @@ impl Cmpc {
     pub fn tick(&mut self, g: &CmpcGains, lim: &Limits, input: &CmpcInput) -> MpcOutput {
         let o = &input.observed;
         let y = input.y_m;
+        // The program's share of the power piston's position.
         let xi = if input.xi_m.is_finite() {
-            input.xi_m
+            input.xi_m - self.u_ff_m
         } else {
             self.u_m
         };
@@ -652,7 +711,11 @@ impl Cmpc {
         let (lo, hi) = self.bounds(g, lim);
         let sol = solve_box_qp(&g.h, &g.h_inv, &grad, &lo, &hi);
         let d = sol.d;
-        let u_new = clamp(self.u_m + d[0], lim.x_min_m, lim.x_max_m);
+        let u_new = clamp(
+            self.u_m + d[0],
+            lim.x_min_m - self.u_ff_m,
+            lim.x_max_m - self.u_ff_m,
+        );
         let du = u_new - self.u_m;
         self.x_prev = x_now;
         self.du_prev_m = du;
@@ -660,10 +723,36 @@ impl Cmpc {
         self.ft_prev_n = input.ft_n;
         self.ticks = self.ticks.saturating_add(1).min(2);
         self.u_m = u_new;
+        self.v_mpc_mps = du / g.ts_s;
         MpcOutput {
-            v_cmd_mps: du / g.ts_s,
+            v_cmd_mps: self.v_mpc_mps,
             saturated: sol.constrained,
         }
+    }
+
+    /// One base tick of the compliance feedforward (module documentation): the
+    /// speed, m/s, to add to the program's for this base tick. The load `ft_n`
+    /// through the low-pass, its change since the start times `comp_ff / b2` is
+    /// the displacement to reach, at most [`CmpcGains::ff_step_m`] per tick and
+    /// never further out of the stroke than `u + u_ff` already is. A
+    /// non-finite load holds the feedforward where it is.
+    #[inline]
+    pub fn compliance_ff(&mut self, g: &CmpcGains, lim: &Limits, ft_n: f32) -> f32 {
+        if !ft_n.is_finite() {
+            return 0.0;
+        }
+        if !self.ff_started {
+            self.ft_lp_n = ft_n;
+            self.ft0_n = ft_n;
+            self.ff_started = true;
+        }
+        self.ft_lp_n += g.ff_alpha * (ft_n - self.ft_lp_n);
+        let target = g.comp_mpn * (self.ft_lp_n - self.ft0_n);
+        let step = clamp(target - self.u_ff_m, -g.ff_step_m, g.ff_step_m);
+        let u = self.u_m + self.u_ff_m;
+        let step = clamp(step, min(lim.x_min_m - u, 0.0), max(lim.x_max_m - u, 0.0));
+        self.u_ff_m += step;
+        step * g.base_hz
     }
 }
 

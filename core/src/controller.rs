@@ -386,7 +386,7 @@ impl Controller {
                 (law, ticks(cfg.mpc_eso.ts_s, cfg.base_dt_s)?)
             }
             ControllerKind::CmpcEso => {
-                let gains = CmpcGains::design(&cfg.plant, cfg.cmpc, &cfg.limits)
+                let gains = CmpcGains::design(&cfg.plant, cfg.cmpc, &cfg.limits, cfg.base_dt_s)
                     .map_err(ConfigError::Design)?;
                 let eso_gains = EsoFixedGains::new(&cfg.eso).map_err(ConfigError::Eso)?;
                 n_h = ticks(cfg.eso.h_s, cfg.base_dt_s)?;
@@ -498,6 +498,10 @@ impl Controller {
     /// Stop: the command becomes 0 until the next controller update.
     pub fn hold(&mut self) {
         self.v_cmd_mps = 0.0;
+        if let Law::CmpcEso { cmpc, .. } = &mut self.law {
+            // Its command is rebuilt every base tick from the program's move.
+            cmpc.v_mpc_mps = 0.0;
+        }
     }
 
     fn bumpless_start(&mut self, xo_m: f32, xi_m: f32) {
@@ -617,6 +621,9 @@ impl Controller {
                 cmpc,
                 eso,
             } => {
+                // Every base tick: the compliance feedforward on top of the
+                // program's move (crate::cmpc, "The compliance feedforward").
+                let v_ff = cmpc.compliance_ff(gains, &lim, sample.ft_n);
                 if ctl_tick {
                     let z = eso.to_f32();
                     let input = CmpcInput {
@@ -630,10 +637,9 @@ impl Controller {
                             b0_v_mps2: *b0 * self.v_cmd_mps,
                         },
                     };
-                    let out = cmpc.tick(gains, &lim, &input);
-                    self.v_cmd_mps = out.v_cmd_mps;
-                    self.saturated = out.saturated;
+                    self.saturated = cmpc.tick(gains, &lim, &input).saturated;
                 }
+                self.v_cmd_mps = cmpc.v_mpc_mps + v_ff;
                 if eso_tick {
                     let u = Vel::from_bits(fxp::f32_to_q::<{ VEL_FRAC as i32 }>(self.v_cmd_mps));
                     let y = Pos::from_bits(fxp::f32_to_q::<{ POS_FRAC as i32 }>(y));

@@ -12,7 +12,7 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix notation
 
 use dca_core::cmpc::{solve_box_qp, Cmpc, CmpcDesign, CmpcGains, CmpcInput, CmpcParams, N_MOVES};
-use dca_core::design::DesignError;
+use dca_core::design::{DesignError, PredictionModel};
 use dca_core::mpc::{Limits, Observed};
 use dca_core::params::PlantParams;
 use proptest::prelude::*;
@@ -159,7 +159,7 @@ fn the_solver_finds_the_kkt_point_of_an_independent_f64_enumeration() {
     let mut active = [0usize; 4];
     for (params, lim) in designs() {
         let d = CmpcDesign::new(&PlantParams::NOMINAL, params).unwrap();
-        let g32 = CmpcGains::design(&PlantParams::NOMINAL, params, &lim).unwrap();
+        let g32 = CmpcGains::design(&PlantParams::NOMINAL, params, &lim, 1e-3).unwrap();
         let v_ts = lim.v_max_mps as f64 * params.ts_s;
         for _ in 0..4000 {
             // Random states over what the rig can show: position increments of
@@ -226,7 +226,7 @@ fn without_active_bounds_the_solution_is_the_unconstrained_minimiser() {
     let lim = Limits::from_plant(&PlantParams::NOMINAL);
     let p = CmpcParams::LIMIT;
     let d = CmpcDesign::new(&PlantParams::NOMINAL, p).unwrap();
-    let g32 = CmpcGains::design(&PlantParams::NOMINAL, p, &lim).unwrap();
+    let g32 = CmpcGains::design(&PlantParams::NOMINAL, p, &lim, 1e-3).unwrap();
     let g = [1e-3f64, -2e-3, 5e-4].map(|v| v * d.h[0][0] * 1e-3);
     let want = kkt_enumeration(&d.h, &g, &[-1.0; 3], &[1.0; 3]);
     let got = solve_box_qp(
@@ -267,6 +267,14 @@ fn invalid_parameters_are_refused() {
         ),
         (CmpcParams { load_ff: 1.5, ..p }, DesignError::Constraint),
         (CmpcParams { preview: -0.1, ..p }, DesignError::Constraint),
+        (CmpcParams { comp_ff: 1.01, ..p }, DesignError::Constraint),
+        (
+            CmpcParams {
+                comp_ff: f64::NAN,
+                ..p
+            },
+            DesignError::Constraint,
+        ),
     ];
     for (params, err) in bad {
         assert_eq!(
@@ -292,14 +300,17 @@ proptest! {
         z2 in -1.0f32..1.0,
         z3 in -100.0f32..100.0,
         ticks in 0u8..3,
+        u_ff in -0.003f32..0.003,
     ) {
         let lim = Limits::from_plant(&PlantParams::NOMINAL);
-        let g = CmpcGains::design(&PlantParams::NOMINAL, CmpcParams::LIMIT, &lim).unwrap();
+        let g = CmpcGains::design(&PlantParams::NOMINAL, CmpcParams::LIMIT, &lim, 1e-3).unwrap();
         let mut c = Cmpc::new(u.clamp(lim.x_min_m, lim.x_max_m));
+        // The compliance feedforward's share keeps u + u_ff inside the stroke.
+        c.u_ff_m = u_ff.clamp(lim.x_min_m - c.u_m, lim.x_max_m - c.u_m);
         c.du_prev_m = du_prev;
         c.ticks = ticks;
         c.r_prev_m = [r - 1e-4, r - 2e-4];
-        let u0 = c.u_m;
+        let u0 = c.u_m + c.u_ff_m;
         let input = CmpcInput {
             y_m: y,
             r_m: r,
@@ -310,8 +321,9 @@ proptest! {
         let out = c.tick(&g, &lim, &input);
         prop_assert!(out.v_cmd_mps.is_finite());
         prop_assert!(out.v_cmd_mps.abs() <= lim.v_max_mps * (1.0 + 1e-5));
-        prop_assert!(c.u_m >= lim.x_min_m && c.u_m <= lim.x_max_m);
-        let du = c.u_m - u0;
+        let u1 = c.u_m + c.u_ff_m;
+        prop_assert!(u1 >= lim.x_min_m - 1e-6 && u1 <= lim.x_max_m + 1e-6, "{u1}");
+        let du = u1 - u0;
         let hard_ok = |d: f32| d.abs() <= lim.v_max_mps * g.ts_s
             && u0 + g.first_periods * d >= lim.x_min_m - 1e-6
             && u0 + g.first_periods * d <= lim.x_max_m + 1e-6;
@@ -320,5 +332,88 @@ proptest! {
         let acc_feasible = hard_ok(du_prev + g.dd_max_m) || hard_ok(du_prev - g.dd_max_m)
             || hard_ok(du_prev);
         prop_assert!(within_acc || !acc_feasible, "du {du} du_prev {du_prev}");
+    }
+}
+
+/// The compliance feedforward's gain: `comp_ff / b2` of the design model.
+fn comp_gain(p: &CmpcParams) -> f32 {
+    let b2 = PredictionModel::new(&PlantParams::NOMINAL).unwrap().b2_npm;
+    (p.comp_ff / b2) as f32
+}
+
+/// A load step is fed forward as the displacement that holds Xo in the model's
+/// static balance (`b1 y = b2 Xi - Ft`), at most at the servo's speed, without
+/// going back on itself; a non-finite reading holds it; with `comp_ff = 0` it
+/// never moves.
+#[test]
+fn a_load_step_is_fed_forward_at_the_servo_speed() {
+    let lim = Limits::from_plant(&PlantParams::NOMINAL);
+    let dt = 1e-3f32;
+    for comp_ff in [0.0, 0.5, 1.0] {
+        let p = CmpcParams {
+            comp_ff,
+            ..CmpcParams::LIMIT
+        };
+        let g = CmpcGains::design(&PlantParams::NOMINAL, p, &lim, dt as f64).unwrap();
+        let mut c = Cmpc::new(0.05);
+        // A standing load before the step is the feedforward's zero.
+        for _ in 0..20 {
+            assert_eq!(c.compliance_ff(&g, &lim, 300.0), 0.0);
+        }
+        let mut prev = c.u_ff_m;
+        let mut saturated_ticks = 0;
+        for k in 0..200 {
+            let ft = if k == 50 { f32::NAN } else { 1100.0 };
+            let v = c.compliance_ff(&g, &lim, ft);
+            let step = c.u_ff_m - prev;
+            assert!(step >= 0.0, "k {k}: back by {step}");
+            assert!(v.abs() <= lim.v_max_mps * (1.0 + 1e-5), "k {k}: {v} m/s");
+            assert!((v * dt - step).abs() <= 1e-9, "k {k}: v {v} for {step} m");
+            if k == 50 {
+                assert_eq!(step, 0.0, "a NaN load holds the feedforward");
+            }
+            if step >= g.ff_step_m * (1.0 - 1e-5) {
+                saturated_ticks += 1;
+            }
+            prev = c.u_ff_m;
+        }
+        let want = comp_gain(&p) * 800.0;
+        assert!(
+            (c.u_ff_m - want).abs() <= 1e-6 * want.max(1e-3),
+            "comp_ff {comp_ff}: {} m, want {want} m",
+            c.u_ff_m
+        );
+        if comp_ff == 0.0 {
+            assert_eq!(c.u_ff_m, 0.0);
+        } else {
+            // 800 N is 0.7 mm (comp_ff 0.5) or 1.4 mm of the power piston: several
+            // ticks at the servo's speed (0.1 mm per 1 ms tick).
+            assert!(saturated_ticks >= 5, "comp_ff {comp_ff}: {saturated_ticks}");
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    /// Whatever the loads and wherever the program's command is, the feedforward
+    /// keeps the servo's speed and never takes `u + u_ff` out of the stroke.
+    #[test]
+    fn the_compliance_feedforward_keeps_speed_and_stroke(
+        u in -0.0101f32..0.1101,
+        loads in proptest::collection::vec(-3000.0f32..3000.0, 1..60),
+    ) {
+        let lim = Limits::from_plant(&PlantParams::NOMINAL);
+        let p = CmpcParams { comp_ff: 1.0, ..CmpcParams::LIMIT };
+        let g = CmpcGains::design(&PlantParams::NOMINAL, p, &lim, 1e-3).unwrap();
+        let mut c = Cmpc::new(u.clamp(lim.x_min_m, lim.x_max_m));
+        for ft in loads {
+            let before = c.u_ff_m;
+            let v = c.compliance_ff(&g, &lim, ft);
+            prop_assert!(v.abs() <= lim.v_max_mps * (1.0 + 1e-5));
+            prop_assert!((c.u_ff_m - before).abs() <= g.ff_step_m * (1.0 + 1e-5));
+            let total = c.u_m + c.u_ff_m;
+            prop_assert!(total >= lim.x_min_m - 1e-7 && total <= lim.x_max_m + 1e-7, "{total}");
+        }
     }
 }

@@ -318,7 +318,7 @@ macro_rules! params {
 }
 
 /// Number of settable values.
-pub const N_PARAMS: usize = 66;
+pub const N_PARAMS: usize = 67;
 
 params! {
     // Plain MPC design.
@@ -341,6 +341,7 @@ params! {
     ("cmpc.a_max_mps2", Bound(1, -3), Bound(1, 4), F64, controller.cmpc.a_max_mps2),
     ("cmpc.load_ff", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.load_ff),
     ("cmpc.preview", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.preview),
+    ("cmpc.comp_ff", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.comp_ff),
     // Observer.
     ("eso.beta1", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta1),
     ("eso.beta2", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta2),
@@ -619,7 +620,7 @@ impl Settings {
         let design = |e| SettingsError::Design(ConfigError::Design(e));
         MpcGains::design(&c.plant, c.mpc).map_err(design)?;
         MpcGains::design(&c.plant, c.mpc_eso).map_err(design)?;
-        CmpcGains::design(&c.plant, c.cmpc, &c.limits).map_err(design)?;
+        CmpcGains::design(&c.plant, c.cmpc, &c.limits, c.base_dt_s).map_err(design)?;
         EsoFixedGains::new(&c.eso).map_err(|e| SettingsError::Design(ConfigError::Eso(e)))?;
         if !c.td.is_valid() {
             return Err(SettingsError::Design(ConfigError::Td));
@@ -766,7 +767,7 @@ mod tests {
             assert_eq!(&p.name[..p.table().len()], p.table());
             assert_eq!(&p.name[p.table().len() + 1..], p.key());
         }
-        assert_eq!(n, 44);
+        assert_eq!(n, 45);
         let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::Mpc);
         let before = cfg;
         assert_eq!(
