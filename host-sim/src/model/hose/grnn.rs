@@ -67,16 +67,32 @@ pub enum GrnnHoseKind {
 #[derive(Clone, Debug, PartialEq)]
 enum Evaluator {
     Table(FastGrnn),
-    Trunc {
-        trunc: Truncated,
-        mean: [f64; MEMORY_DIM],
-        inv_std: [f64; MEMORY_DIM],
-    },
-    Local {
-        local: LocalGrnn,
-        mean: [f64; MEMORY_DIM],
-        inv_std: [f64; MEMORY_DIM],
-    },
+    Trunc { trunc: Truncated, z: MemoryZ },
+    Local { local: LocalGrnn, z: MemoryZ },
+}
+
+/// The memory net's input standardisation, `(x - mean) / std`, with the
+/// reciprocals kept.
+#[derive(Clone, Debug, PartialEq)]
+struct MemoryZ {
+    mean: [f64; MEMORY_DIM],
+    inv_std: [f64; MEMORY_DIM],
+}
+
+impl MemoryZ {
+    fn of(net: &Grnn) -> Self {
+        let sc = net.scaler();
+        Self {
+            mean: core::array::from_fn(|k| sc.mean[k]),
+            inv_std: core::array::from_fn(|k| 1.0 / sc.std[k]),
+        }
+    }
+
+    /// The standardised inputs `[P, dP/dt, memory 1, memory 2]`.
+    fn apply(&self, p_mpa: f64, dpdt_mpa_s: f64, mem_mpa: [f64; N_FILTERS]) -> [f64; MEMORY_DIM] {
+        let x = [p_mpa, dpdt_mpa_s, mem_mpa[0], mem_mpa[1]];
+        core::array::from_fn(|k| (x[k] - self.mean[k]) * self.inv_std[k])
+    }
 }
 
 /// A GRNN hose wall model ready for the integrator.
@@ -139,13 +155,11 @@ impl GrnnHose {
         description: impl Into<String>,
     ) -> Result<Self, FitError> {
         let mut h = Self::from_memory_truncated(m, description)?;
-        let sc = m.net.scaler();
         let local = LocalGrnn::new(&m.net, eps);
         h.bound = local.error_bound();
         h.eval = Evaluator::Local {
             local,
-            mean: core::array::from_fn(|k| sc.mean[k]),
-            inv_std: core::array::from_fn(|k| 1.0 / sc.std[k]),
+            z: MemoryZ::of(&m.net),
         };
         Ok(h)
     }
@@ -169,15 +183,13 @@ impl GrnnHose {
             ));
         }
         let trunc = Truncated::new(&m.net, MEMORY_TRUNC_EPS);
-        let sc = m.net.scaler();
         let (g_min, g_max) = m.net.output_range();
         Ok(Self {
             kind: GrnnHoseKind::Memory,
             bound: trunc.error_bound(),
             eval: Evaluator::Trunc {
                 trunc,
-                mean: core::array::from_fn(|k| sc.mean[k]),
-                inv_std: core::array::from_fn(|k| 1.0 / sc.std[k]),
+                z: MemoryZ::of(&m.net),
             },
             taus_s: m.taus_s,
             sigma: m.net.sigma(),
@@ -298,25 +310,13 @@ impl GrnnHose {
                 let (g, grad) = f.eval([p_mpa, dpdt_mpa_s]);
                 (g, grad[1])
             }
-            Evaluator::Trunc {
-                trunc,
-                mean,
-                inv_std,
-            } => {
-                let x = [p_mpa, dpdt_mpa_s, mem_mpa[0], mem_mpa[1]];
-                let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| (x[k] - mean[k]) * inv_std[k]);
-                let e = trunc.eval_z(&u, false);
-                (e.y, e.grad[1] * inv_std[1])
+            Evaluator::Trunc { trunc, z } => {
+                let e = trunc.eval_z(&z.apply(p_mpa, dpdt_mpa_s, mem_mpa), false);
+                (e.y, e.grad[1] * z.inv_std[1])
             }
-            Evaluator::Local {
-                local,
-                mean,
-                inv_std,
-            } => {
-                let x = [p_mpa, dpdt_mpa_s, mem_mpa[0], mem_mpa[1]];
-                let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| (x[k] - mean[k]) * inv_std[k]);
-                let e = local.eval_z(&u, cache);
-                (e.y, e.dy_du1 * inv_std[1])
+            Evaluator::Local { local, z } => {
+                let e = local.eval_z(&z.apply(p_mpa, dpdt_mpa_s, mem_mpa), cache);
+                (e.y, e.dy_du1 * z.inv_std[1])
             }
         }
     }
