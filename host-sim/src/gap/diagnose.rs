@@ -248,6 +248,7 @@ pub fn diagnose(
         effects: c.effects,
         fit,
         check,
+        base: base.clone(),
     };
     (diag, details)
 }

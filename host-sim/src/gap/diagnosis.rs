@@ -12,6 +12,7 @@ use super::measure::Shrink;
 use super::replay::Replay;
 use super::run::Run;
 use crate::model::effects::{EffectKind, Effects};
+use crate::model::plant::Plant;
 
 /// The diagnosis's answer. In the JSON (and in messages) its identifier:
 /// the effect's (docs/model.md section 12), `none` or `unexplained`.
@@ -216,4 +217,6 @@ pub struct Details {
     pub after: Vec<Replay>,
     /// The verdict's effects.
     pub effects: Effects,
+    /// The nominal plant the runs were replayed on.
+    pub base: Plant,
 }

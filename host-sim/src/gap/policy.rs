@@ -65,6 +65,14 @@ pub fn confirms(before: f64, after: f64, min_shrink: f64) -> bool {
     Shrink::new(before, after).shrink >= min_shrink || after < NONE_GAP
 }
 
+/// Whether a model change explains the gap: it shrinks the fit runs' gap
+/// (`before_fit` to `fit_after`) by [`MIN_SHRINK`] and the check runs
+/// confirm it ([`confirms`]).
+pub fn explains(before_fit: f64, before_check: f64, fit_after: f64, check_after: f64) -> bool {
+    Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
+        && confirms(before_check, check_after, MIN_SHRINK)
+}
+
 /// Whether to search for a second effect: the runs show a gap beyond the
 /// noise (`pooled`) and the best single candidate leaves one on the fit runs.
 pub fn wants_pair(pooled: f64, best: &CandidateFit, second_effect: bool) -> bool {
@@ -131,8 +139,7 @@ pub fn decide(
         };
     }
     let explains = |fit_after: f64, check_after: f64| {
-        Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
-            && confirms(before_check, check_after, MIN_SHRINK)
+        explains(before_fit, before_check, fit_after, check_after)
     };
     let holds = |i: &usize| {
         let c = &ranked[*i];

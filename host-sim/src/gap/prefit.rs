@@ -11,12 +11,24 @@
 
 use super::fit::{minimize, Bound};
 use super::run::Run;
-use crate::model::effects::{self, EffectKind, MotorLimit};
+use crate::model::effects::{
+    self, EffectKind, MotorLimit, Servo, ServoEnvelope, ENVELOPE_SPEEDS_MPS,
+};
 use crate::model::plant::Plant;
 
-/// Squared Xi error (in units of `scale_m`) of the servo model with `limit`
-/// (or none) on one run; stops early once above `stop`.
-fn servo_error(run: &Run, plant: &Plant, limit: Option<&MotorLimit>, stop: f64) -> f64 {
+/// Bounds of the reflected mass in the servo fits, kg.
+const MOTOR_MASS: Bound = Bound { lo: 5.0, hi: 1e4 };
+/// Bounds of the drive's force in the servo fits, N.
+const MOTOR_FORCE: Bound = Bound { lo: 50.0, hi: 1e5 };
+
+/// Relative rise of the servo error within which a knot of the envelope is
+/// taken as unconstrained by the runs (its force then stays as high as the
+/// error allows).
+const FLAT_TOL: f64 = 0.05;
+
+/// Squared Xi error (in units of the run's Xi scale) of the servo model
+/// `servo` on one run; stops early once above `stop`.
+fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, stop: f64) -> f64 {
     let p = plant.params();
     let log = &run.log;
     let n = log.len();
@@ -35,7 +47,7 @@ fn servo_error(run: &Run, plant: &Plant, limit: Option<&MotorLimit>, stop: f64) 
         let vc = plant
             .software_limited_v_cmd(xi, log.vcmd_mps[k])
             .clamp(-p.v_max_mps, p.v_max_mps);
-        let accel = |v: f64| effects::servo_accel(limit, vc, v, p.tau_m_s, f);
+        let accel = |v: f64| effects::servo_accel(servo, vc, v, p.tau_m_s, f);
         for _ in 0..sub {
             // Midpoint rule on (xi, vi); the servo's time constant is 20 steps.
             let a1 = accel(vi);
@@ -52,10 +64,10 @@ fn servo_error(run: &Run, plant: &Plant, limit: Option<&MotorLimit>, stop: f64) 
 }
 
 /// Squared Xi error of the servo model over `runs` (see [`motor_limit`]).
-pub fn total_error(runs: &[Run], plant: &Plant, limit: Option<&MotorLimit>, stop: f64) -> f64 {
+pub fn total_error(runs: &[Run], plant: &Plant, servo: Servo<'_>, stop: f64) -> f64 {
     let mut e = 0.0;
     for r in runs {
-        e += servo_error(r, plant, limit, stop - e);
+        e += servo_error(r, plant, servo, stop - e);
         if e > stop {
             break;
         }
@@ -90,8 +102,8 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
         speed_max_mps: x[2],
     };
     let at = |u: [f64; 3]| -> [f64; 3] { std::array::from_fn(|i| bounds[i].at(u[i])) };
-    let err = |u: [f64; 3], stop: f64| total_error(runs, plant, Some(&make(&at(u))), stop);
-    let nominal = total_error(runs, plant, None, f64::INFINITY);
+    let err = |u: [f64; 3], stop: f64| total_error(runs, plant, Servo::Limit(&make(&at(u))), stop);
+    let nominal = total_error(runs, plant, Servo::Nominal, f64::INFINITY);
     let unit = |i: usize, n: usize| i as f64 / (n - 1) as f64;
     // Best (error, [force, mass, speed] on the unit scales) with the speed at `uv`.
     let search = |uv: f64, stop: f64| -> (f64, [f64; 3]) {
@@ -152,9 +164,191 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
     if e >= nominal {
         return None;
     }
-    let mut f = |x: &[f64], stop: f64| total_error(runs, plant, Some(&make(x)), stop);
+    let mut f = |x: &[f64], stop: f64| total_error(runs, plant, Servo::Limit(&make(x)), stop);
     let r = minimize(&mut f, &bounds, &at(u), 3, 27 + 60);
     (r.value < nominal).then_some(r.x)
+}
+
+/// The servo's general family fitted through the servo alone: the force
+/// envelope ([`ServoEnvelope`]) that best explains the measured Xi of
+/// `runs`, with its squared Xi error and the nominal servo's; `None` when
+/// it explains it no better than the nominal servo.
+///
+/// Each knot's force mostly decides the samples near its speed, so the
+/// search goes knot by knot: for each mass of a log axis, the force at rest
+/// is scanned (the narrow direction, as in [`motor_limit`]) and refined by
+/// golden section, then each further knot between zero and the knot before
+/// it (the envelope never rises with speed), from the fastest down, twice
+/// over. The best mass is
+/// refined on a finer axis around it, and Nelder-Mead polishes the result.
+/// Knots the runs never reach stay at the force of the knot before (flat).
+pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64, f64)> {
+    const K: usize = ENVELOPE_SPEEDS_MPS.len();
+    let make = |m: f64, a: &[f64]| {
+        let mut f = [a[0]; K];
+        for k in 1..K {
+            f[k] = a[k].clamp(0.0, f[k - 1]);
+        }
+        ServoEnvelope {
+            mass_eq_kg: m,
+            force_n: f,
+        }
+    };
+    let err = |m: f64, a: &[f64], stop: f64| {
+        let s = make(m, a);
+        if !s.is_valid() {
+            return f64::INFINITY;
+        }
+        total_error(runs, plant, Servo::Envelope(&s), stop)
+    };
+    let nominal = total_error(runs, plant, Servo::Nominal, f64::INFINITY);
+    // Only where the gap is in the servo: the nominal servo leaves Xi off by
+    // more than its scale on average.
+    let samples: usize = runs.iter().map(|r| r.log.len()).sum();
+    if nominal <= samples as f64 {
+        return None;
+    }
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    // Golden section of `f(x, stop)` on [lo, hi] after a scan of `n`
+    // points. Evaluations stop at four times the best value of the line so
+    // far: values near the valley stay exact, so the bracket is found.
+    let line = |f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize| -> (f64, f64) {
+        let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
+        let mut best = (f64::INFINITY, 0usize);
+        for i in 0..n {
+            let e = f(at(i), 4.0 * best.0);
+            if e < best.0 {
+                best = (e, i);
+            }
+        }
+        let (mut a, mut b) = (at(best.1.saturating_sub(1)), at((best.1 + 1).min(n - 1)));
+        let mut out = (best.0, at(best.1));
+        for _ in 0..12 {
+            let (c, d) = (b - g * (b - a), a + g * (b - a));
+            let (ec, ed) = (f(c, 4.0 * out.0), f(d, 4.0 * out.0));
+            for (e, u) in [(ec, c), (ed, d)] {
+                if e < out.0 {
+                    out = (e, u);
+                }
+            }
+            if ec < ed {
+                b = d;
+            } else {
+                a = c;
+            }
+        }
+        out
+    };
+    // Where the runs never press the drive at a knot's speed, the error is
+    // flat below the knot before: each knot is raised to the highest force
+    // within FLAT_TOL of the error `e` (limit only where the data show it).
+    let raise = |m: f64, a: &mut [f64; K], e: f64| -> (f64, [f64; K]) {
+        let tol = e * (1.0 + FLAT_TOL) + 1.0;
+        for k in 1..K {
+            let fits = |x: f64| {
+                let mut y = *a;
+                y[k] = x;
+                err(m, &y, tol) <= tol
+            };
+            let (mut lo, mut hi) = (a[k].min(a[k - 1]), a[k - 1]);
+            if fits(hi) {
+                a[k] = hi;
+                continue;
+            }
+            for _ in 0..10 {
+                let mid = 0.5 * (lo + hi);
+                if fits(mid) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            a[k] = lo;
+        }
+        (err(m, a, f64::INFINITY), *a)
+    };
+    // Knot-by-knot search at mass `m` from the forces `a0`.
+    let knots = |m: f64, a0: [f64; K]| -> (f64, [f64; K]) {
+        let mut a = a0;
+        let mut e = f64::INFINITY;
+        for sweep in 0..2 {
+            // The force at rest on a log axis (u in [0, 1] of MOTOR_FORCE).
+            let (lo, hi) = if sweep == 0 {
+                (0.0, 1.0)
+            } else {
+                let u = MOTOR_FORCE.u_of(a[0]);
+                ((u - 0.05).max(0.0), (u + 0.05).min(1.0))
+            };
+            let f0 = |u: f64, stop: f64| {
+                let mut y = a;
+                let ratio = MOTOR_FORCE.at(u) / a[0];
+                for v in y.iter_mut() {
+                    *v *= ratio;
+                }
+                err(m, &y, stop)
+            };
+            let (e0, u0) = line(&f0, lo, hi, if sweep == 0 { 30 } else { 5 });
+            if e0 < e {
+                let ratio = MOTOR_FORCE.at(u0) / a[0];
+                for v in a.iter_mut() {
+                    *v *= ratio;
+                }
+                e = e0;
+            }
+            // From the fastest knot down: lowering one caps only the
+            // speeds above it (a knot lowered first would cap them all).
+            for k in (1..K).rev() {
+                let top = a[k - 1];
+                let fk = |x: f64, stop: f64| {
+                    let mut y = a;
+                    y[k] = x;
+                    err(m, &y, stop)
+                };
+                let (ek, xk) = line(&fk, 0.0, top, 9);
+                if ek < e {
+                    (e, a[k]) = (ek, xk);
+                }
+            }
+        }
+        raise(m, &mut a, e)
+    };
+    let mut best = (nominal, 0.0, [0.0; K]);
+    let masses = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| (lo.ln() + (hi.ln() - lo.ln()) * i as f64 / (n - 1) as f64).exp())
+            .collect()
+    };
+    for m in masses(MOTOR_MASS.lo, 1e3, 8) {
+        let (e, a) = knots(m, [MOTOR_FORCE.at(0.5); K]);
+        if e < best.0 {
+            best = (e, m, a);
+        }
+    }
+    if best.1 == 0.0 {
+        return None;
+    }
+    let m0 = best.1;
+    for m in masses(m0 / 1.9, m0 * 1.9, 6) {
+        let (e, a) = knots(m, best.2);
+        if e < best.0 {
+            best = (e, m, a);
+        }
+    }
+    // Nelder-Mead over the mass and the forces together.
+    let mut bounds = vec![MOTOR_MASS, MOTOR_FORCE];
+    let top = best.2[0];
+    bounds.extend([Bound { lo: 0.0, hi: top }; K - 1]);
+    let mut x0 = vec![best.1];
+    x0.extend(best.2);
+    let mut f = |x: &[f64], stop: f64| err(x[0], &x[1..], stop);
+    let r = minimize(&mut f, &bounds, &x0, 0, 300);
+    if r.value < best.0 {
+        let mut a = [0.0; K];
+        a.copy_from_slice(&r.x[1..]);
+        let (e, a) = raise(r.x[0], &mut a, r.value);
+        best = (e, r.x[0], a);
+    }
+    Some((make(best.1, &best.2), best.0, nominal))
 }
 
 #[cfg(test)]
@@ -165,23 +359,26 @@ mod tests {
     use crate::model::rig::Rig;
     use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
 
-    /// An open-loop run of the rig with a motor limit; the prefit finds it.
-    #[test]
-    fn finds_a_force_limit_from_the_encoder() {
-        let truth = [1200.0, 150.0, 0.1];
-        let mut e = Effects::NONE;
-        e.set(EffectKind::MotorLimit, Some(&truth));
-        let rig = Rig::new(Plant::nominal(), e).unwrap();
+    /// An open-loop run of the rig with `effects`: the speed command and the
+    /// load piecewise constant (values between the switching times), logged
+    /// with ideal sensors at 1 ms.
+    fn open_loop_run(
+        effects: Effects,
+        t_end_s: f64,
+        cmd: (Vec<f64>, &[f64]),
+        load: (Vec<f64>, &[f64]),
+    ) -> Run {
+        let rig = Rig::new(Plant::nominal(), effects).unwrap();
         let steps = |t: Vec<f64>, v: &[f64]| Signal::Piecewise(Piecewise::constants(t, v).unwrap());
         let sc = Scenario::new(
             "t",
-            3.0,
-            Command::OpenLoop(steps(vec![0.5, 1.0, 1.5, 2.0], &[0.0, 0.1, 0.0, -0.1, 0.0])),
-            steps(vec![0.2], &[0.0, 800.0]),
+            t_end_s,
+            Command::OpenLoop(steps(cmd.0, cmd.1)),
+            steps(load.0, load.1),
         );
         let mut s = rig.initial_state(0.0);
         let mut text = String::from("t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n");
-        for k in 0..3000 {
+        for k in 0..(t_end_s * 1e3).round() as usize {
             let t = k as f64 * 1e-3;
             let Command::OpenLoop(v) = sc.command() else {
                 unreachable!()
@@ -196,9 +393,80 @@ mod tests {
                 rig.step(&mut s, v, ft, 1e-4);
             }
         }
-        let run = Run::new("t".into(), RunLog::parse(&text, "t").unwrap());
+        Run::new("t".into(), RunLog::parse(&text, "t").unwrap())
+    }
+
+    /// An open-loop run of the rig with a motor limit; the prefit finds it.
+    #[test]
+    fn finds_a_force_limit_from_the_encoder() {
+        let truth = [1200.0, 150.0, 0.1];
+        let mut e = Effects::NONE;
+        e.set(EffectKind::MotorLimit, Some(&truth));
+        let run = open_loop_run(
+            e,
+            3.0,
+            (vec![0.5, 1.0, 1.5, 2.0], &[0.0, 0.1, 0.0, -0.1, 0.0]),
+            (vec![0.2], &[0.0, 800.0]),
+        );
         let x = motor_limit(std::slice::from_ref(&run), &Plant::nominal()).expect("found");
         // The force limit is what the encoder sees best.
         assert!((x[0] / 1200.0 - 1.0).abs() < 0.03, "{x:?}");
+    }
+
+    /// A torque-speed curve that the named form cannot take (the force
+    /// falls with speed): the envelope finds the force at rest and the
+    /// fall where the run motors under load, keeps the knots the run never
+    /// presses flat, and is not fitted where the servo follows its command.
+    #[test]
+    fn learns_a_falling_force_envelope_and_nothing_from_a_nominal_servo() {
+        let truth = ServoEnvelope {
+            mass_eq_kg: 150.0,
+            force_n: [1200.0, 1200.0, 1200.0, 900.0, 600.0, 300.0],
+        };
+        let e = Effects {
+            servo_envelope: Some(truth),
+            ..Effects::NONE
+        };
+        // Extend at full command against 800 N (settles where A(v) = 800 N,
+        // near 67 mm/s), return, stall against 1400 N.
+        let run = open_loop_run(
+            e,
+            3.0,
+            (
+                vec![0.3, 0.8, 1.3, 1.6, 2.1],
+                &[0.0, 0.1, 0.0, -0.05, 0.0, 0.02],
+            ),
+            (vec![0.1, 2.0], &[0.0, 800.0, 1400.0]),
+        );
+        let runs = std::slice::from_ref(&run);
+        let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
+        assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");
+        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+        assert!(rel(env.force_n[0], 1200.0) < 0.03, "{env:?}");
+        // Where the run motors under load, the speed at which 800 N is all
+        // the drive has (the settling speed, 66.7 mm/s; one load level shows
+        // where the curve crosses it, not its slope).
+        let crossing = |s: &ServoEnvelope| {
+            let (mut lo, mut hi) = (0.0, 0.1);
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if s.available_n(mid) > 800.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        assert!((crossing(&env) - crossing(&truth)).abs() < 2e-3, "{env:?}");
+        assert!(env.is_valid());
+        // The nominal rig gives no envelope.
+        let clean = open_loop_run(
+            Effects::NONE,
+            3.0,
+            (vec![0.3, 0.8, 1.3, 1.6], &[0.0, 0.1, 0.0, -0.05, 0.0]),
+            (vec![0.1], &[0.0, 800.0]),
+        );
+        assert!(servo_envelope(std::slice::from_ref(&clean), &Plant::nominal()).is_none());
     }
 }

@@ -9,6 +9,7 @@ use super::replay::{measured, Replay, CHANNELS};
 use super::run::Run;
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
+use crate::model::effects::{ServoEnvelope, ENVELOPE_SPEEDS_MPS};
 
 /// Why the report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -84,6 +85,48 @@ fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), PlotError> {
     plot::save(path, &[panel], 900, 360)
 }
 
+/// The learned servo envelope against speed, with the drive force the fit
+/// runs show where the drive motors (m a + F from the encoder's speed and
+/// acceleration over +-5 ms and the measured pressures): the envelope
+/// should bound the cloud from above, and touch it where the drive was at
+/// its limit.
+fn envelope_figure(path: &Path, s: &ServoEnvelope, details: &Details) -> Result<(), PlotError> {
+    let curve: Vec<(f64, f64)> = (0..=120)
+        .map(|i| {
+            let v = i as f64 * 1e-3;
+            (v * 1e3, s.available_n(v))
+        })
+        .collect();
+    let mut points = Vec::new();
+    for run in &details.fit {
+        let log = &run.log;
+        let dt = log.dt_s();
+        let h = ((5e-3 / dt).round() as usize).max(1);
+        let mut k = h;
+        while k + h < log.len() {
+            let v = (log.xi_m[k + h] - log.xi_m[k - h]) / (2.0 * h as f64 * dt);
+            let a =
+                (log.xi_m[k + h] - 2.0 * log.xi_m[k] + log.xi_m[k - h]) / (h as f64 * dt).powi(2);
+            let f = s.mass_eq_kg * a + details.base.piston_force_n(log.p1_pa[k], log.p2_pa[k]);
+            if f * v > 0.0 && v.abs() > 1e-3 {
+                points.push((v.abs() * 1e3, f.abs()));
+            }
+            k += h;
+        }
+    }
+    let panel = Panel::new(
+        format!(
+            "motor_limit, general family: available drive force over speed (reflected mass {:.0} kg)",
+            s.mass_eq_kg
+        ),
+        "speed of the power piston [mm/s]",
+        "drive force [N]",
+    )
+    .with(Series::line("learned envelope A(v)", curve))
+    .with(Series::points("fit runs while motoring: m a + F", points));
+    plot::save(path, &[panel], 900, 420)
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -129,6 +172,22 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
     }
     if let (Some(form), Some(sub)) = (&d.form, &d.subsystem) {
         let _ = writeln!(md, "Form that held: {form} (subsystem: {sub}).\n");
+    }
+    if let Some(s) = &details.effects.servo_envelope {
+        envelope_figure(&dir.join("servo_envelope.png"), s, details)?;
+        let _ = writeln!(
+            md,
+            "## The servo's learned force envelope\n\n\
+             | speed [mm/s] | {} |\n|---|{}\n| available force [N] | {} |\n\n\
+             Reflected mass {:.1} kg. Knots that the fit runs never press stay at the force of the \
+             knot below them.\n\n![servo envelope](servo_envelope.png)\n",
+            ENVELOPE_SPEEDS_MPS
+                .map(|v| format!("{:.0}", v * 1e3))
+                .join(" | "),
+            "---|".repeat(ENVELOPE_SPEEDS_MPS.len()),
+            s.force_n.map(|f| format!("{f:.0}")).join(" | "),
+            s.mass_eq_kg
+        );
     }
     if !d.parameters.is_empty() {
         let _ = writeln!(

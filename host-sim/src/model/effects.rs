@@ -13,6 +13,7 @@
 //! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
+//! | `motor_limit`, general family ([`ServoEnvelope`]) | the drive's force envelope over speed, learned from the encoder: the speed loop's force m a + F is clamped to +-A(abs(v)) while motoring (A piecewise linear over 0 ... 0.1 m/s, non-increasing: a torque-speed curve of any shape) and to +-A(0) while braking; no separate speed cap (A falling to 0 is one) | `mass_eq_kg`, `force_n` (A at the knots [`ENVELOPE_SPEEDS_MPS`]) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
 //! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
@@ -126,6 +127,79 @@ pub struct MotorLimit {
 
 fn default_speed_max() -> f64 {
     dca_core::params::PlantParams::NOMINAL.v_max_mps
+}
+
+/// Speeds of the knots of a [`ServoEnvelope`], m/s: 0 to the nominal
+/// command limit (0.1 m/s) in steps of 20 mm/s.
+pub const ENVELOPE_SPEEDS_MPS: [f64; 6] = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10];
+
+/// The general family of the servo (`motor_limit` in any shape): the
+/// drive's force envelope over speed. The speed loop asks for the force
+/// `m a + F` (a = (v_target - v) / tau, F the hydraulic force on the power
+/// piston); while motoring (force and speed of one sign) it gets at most
+/// the available force `A(abs(v))`, piecewise linear between the knots and
+/// flat beyond the last; while braking at most `A(0)`. A constant `A` is
+/// the named form's force limit, `A` falling to zero at some speed its speed
+/// cap, and any torque-speed curve lies in between.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ServoEnvelope {
+    /// Motor and screw inertia reflected to the screw axis, kg.
+    pub mass_eq_kg: f64,
+    /// Available force at [`ENVELOPE_SPEEDS_MPS`], N (non-increasing).
+    pub force_n: [f64; 6],
+}
+
+impl ServoEnvelope {
+    /// Available (motoring) force at `speed_mps` (its magnitude), N.
+    pub fn available_n(&self, speed_mps: f64) -> f64 {
+        let s = speed_mps.abs();
+        let dv = ENVELOPE_SPEEDS_MPS[1];
+        let last = self.force_n.len() - 1;
+        let x = s / dv;
+        if x.is_nan() || x >= last as f64 {
+            return self.force_n[last];
+        }
+        let i = x as usize;
+        let w = x - i as f64;
+        self.force_n[i] + w * (self.force_n[i + 1] - self.force_n[i])
+    }
+
+    /// Servo acceleration when the speed loop asks for `a_mps2` at the
+    /// speed `v_mps` against the hydraulic force `f_load_n` (positive
+    /// opposing extension).
+    pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
+        let f = self.mass_eq_kg * a_mps2 + f_load_n;
+        let cap = if f * v_mps >= 0.0 {
+            self.available_n(v_mps)
+        } else {
+            self.force_n[0]
+        };
+        (f.clamp(-cap, cap) - f_load_n) / self.mass_eq_kg
+    }
+
+    /// Whether the envelope is usable: finite, a positive mass and force at
+    /// rest, forces non-negative and non-increasing with speed.
+    pub fn is_valid(&self) -> bool {
+        self.mass_eq_kg.is_finite()
+            && self.mass_eq_kg > 0.0
+            && self.force_n[0].is_finite()
+            && self.force_n[0] > 0.0
+            && self.force_n.iter().all(|f| f.is_finite() && *f >= 0.0)
+            && self.force_n.windows(2).all(|w| w[1] <= w[0])
+    }
+}
+
+/// The servo model a rig runs: nominal, the named `motor_limit` form, or
+/// its general family.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Servo<'a> {
+    /// The nominal first-order servo.
+    Nominal,
+    /// The named force limit and speed cap.
+    Limit(&'a MotorLimit),
+    /// The learned force envelope.
+    Envelope(&'a ServoEnvelope),
 }
 
 /// Rate-independent hose-wall hysteresis.
@@ -369,6 +443,9 @@ pub struct Effects {
     pub sensor_delay: Option<SensorDelay>,
     /// `motor_limit`.
     pub motor_limit: Option<MotorLimit>,
+    /// `motor_limit` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub servo_envelope: Option<ServoEnvelope>,
     /// `hose_hysteresis`.
     pub hose_hysteresis: Option<HoseHysteresis>,
     /// `accumulator_thermal`.
@@ -576,6 +653,7 @@ impl Effects {
         air: None,
         sensor_delay: None,
         motor_limit: None,
+        servo_envelope: None,
         hose_hysteresis: None,
         accumulator_thermal: None,
         sensor_calibration: None,
@@ -585,6 +663,15 @@ impl Effects {
     /// True when no effect is active.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
+    }
+
+    /// The servo model these effects give.
+    pub fn servo(&self) -> Servo<'_> {
+        match (&self.servo_envelope, &self.motor_limit) {
+            (Some(s), _) => Servo::Envelope(s),
+            (None, Some(m)) => Servo::Limit(m),
+            (None, None) => Servo::Nominal,
+        }
     }
 
     /// The active effects.
@@ -802,6 +889,25 @@ impl Effects {
                 );
             }
         }
+        if let Some(s) = self.servo_envelope {
+            if self.motor_limit.is_some() {
+                return constraint(
+                    EffectKind::MotorLimit,
+                    "the named form and the servo envelope exclude each other",
+                );
+            }
+            let most = VALID_SPAN * MOTOR_LIMIT_PARAMS[0].max;
+            if !s.is_valid()
+                || s.force_n[0] > most
+                || s.mass_eq_kg > VALID_SPAN * MOTOR_LIMIT_PARAMS[1].max
+            {
+                return constraint(
+                    EffectKind::MotorLimit,
+                    "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
+                     and non-increasing with speed",
+                );
+            }
+        }
         if let Some(l) = self.leakage {
             if !(l.exponent > 0.0 && l.exponent <= 2.0) {
                 return constraint(EffectKind::Leakage, "exponent must be in (0, 2]");
@@ -977,21 +1083,17 @@ pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
 
 /// Servo acceleration towards the speed command `vc_mps` (already within
 /// the nominal +-v_max) from the speed `v_mps`: the nominal first-order
-/// servo with time constant `tau_s`, or under `limit` its speed cap and
-/// force limit against the hydraulic force `f_load_n`.
-pub fn servo_accel(
-    limit: Option<&MotorLimit>,
-    vc_mps: f64,
-    v_mps: f64,
-    tau_s: f64,
-    f_load_n: f64,
-) -> f64 {
-    match limit {
-        Some(m) => {
+/// servo with time constant `tau_s`, or under the named limit its speed cap
+/// and force limit, or under the envelope its force over speed, against the
+/// hydraulic force `f_load_n`.
+pub fn servo_accel(servo: Servo<'_>, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> f64 {
+    match servo {
+        Servo::Limit(m) => {
             let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
             motor_accel(m, (target - v_mps) / tau_s, f_load_n)
         }
-        None => (vc_mps - v_mps) / tau_s,
+        Servo::Envelope(s) => s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n),
+        Servo::Nominal => (vc_mps - v_mps) / tau_s,
     }
 }
 
@@ -1091,6 +1193,53 @@ mod tests {
         assert!((q(&orifice, 4e6) / q(&orifice, 1e6) - 2.0).abs() < 0.01);
         assert_eq!(q(&orifice, -4e6), -q(&orifice, 4e6));
         assert_eq!(q(&orifice, 0.0), 0.0);
+    }
+
+    #[test]
+    fn servo_envelope_limits_motoring_by_speed_and_braking_at_rest_force() {
+        let s = ServoEnvelope {
+            mass_eq_kg: 100.0,
+            force_n: [1000.0, 1000.0, 800.0, 400.0, 0.0, 0.0],
+        };
+        assert!(s.is_valid());
+        assert_eq!(s.available_n(0.0), 1000.0);
+        assert!((s.available_n(-0.05) - 600.0).abs() < 1e-9);
+        assert_eq!(s.available_n(0.2), 0.0);
+        // Motoring at 50 mm/s against 300 N: 600 N available, 3 m/s^2.
+        assert!((s.accel(50.0, 0.05, 300.0) - 3.0).abs() < 1e-12);
+        // Braking from 50 mm/s: the force at rest (1000 N) against 300 N.
+        assert!((s.accel(-50.0, 0.05, 300.0) + 13.0).abs() < 1e-12);
+        // Small requests are met; at 80 mm/s nothing is left to push on.
+        assert_eq!(s.accel(1.0, 0.05, 0.0), 1.0);
+        assert!(s.accel(10.0, 0.08, 0.0).abs() < 1e-12);
+        // A constant envelope is the named force limit without a speed cap.
+        let flat = ServoEnvelope {
+            mass_eq_kg: 100.0,
+            force_n: [500.0; 6],
+        };
+        let m = MotorLimit {
+            force_max_n: 500.0,
+            mass_eq_kg: 100.0,
+            speed_max_mps: 0.1,
+        };
+        for (a, v, f) in [
+            (50.0, 0.03, 300.0),
+            (-50.0, 0.03, 300.0),
+            (2.0, -0.01, -100.0),
+        ] {
+            assert_eq!(flat.accel(a, v, f), motor_accel(&m, a, f));
+        }
+        // Rising envelopes and the two servo models at once are refused.
+        let mut e = Effects::NONE;
+        e.servo_envelope = Some(ServoEnvelope {
+            mass_eq_kg: 100.0,
+            force_n: [500.0, 600.0, 0.0, 0.0, 0.0, 0.0],
+        });
+        assert!(e.validate().is_err());
+        e.servo_envelope = Some(flat);
+        assert!(e.validate().is_ok());
+        e.set(EffectKind::MotorLimit, Some(&[500.0, 100.0, 0.1]));
+        assert!(e.validate().is_err());
     }
 
     #[test]

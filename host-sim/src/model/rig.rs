@@ -210,7 +210,7 @@ impl Rig {
         // Servo (motor side): target, torque-speed cut, acceleration limit.
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
         let f_piston = self.piston_force_n(&x);
-        let dvi = effects::servo_accel(e.motor_limit.as_ref(), vc, x.vi_mps, p.tau_m_s, f_piston);
+        let dvi = effects::servo_accel(e.servo(), vc, x.vi_mps, p.tau_m_s, f_piston);
         let mut fo = self.plant.forces_n(&x, ft_n);
         if let Some(f) = &e.friction {
             fo += effects::friction_force_n(f, x.vo_mps);

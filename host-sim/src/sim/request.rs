@@ -196,7 +196,7 @@ pub fn log_meta_with(
     spec: &RunSpec,
     drawn: &[&'static params::ParamKey],
 ) -> Vec<(&'static str, String)> {
-    let effects: Vec<String> = spec
+    let mut effects: Vec<String> = spec
         .effects
         .active()
         .iter()
@@ -211,6 +211,15 @@ pub fn log_meta_with(
             format!("{}:{}", k.name(), kv.join(","))
         })
         .collect();
+    // The general families, which have no named parameters.
+    if let Some(s) = &spec.effects.servo_envelope {
+        let f: Vec<String> = s.force_n.iter().map(|f| format!("{f:e}")).collect();
+        effects.push(format!(
+            "servo_envelope:mass_eq_kg={:e},force_n=[{}]",
+            s.mass_eq_kg,
+            f.join(" ")
+        ));
+    }
     vec![
         (
             "effects",
