@@ -15,8 +15,10 @@ use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
 use super::progress::Progress;
 use super::run::Run;
-use super::{calibrate, grey_box, policy, prefit};
-use crate::model::effects::{EffectKind, Effects, ENVELOPE_SPEEDS_MPS};
+use super::{calibrate, grey_box, lsq, policy, prefit};
+use crate::model::effects::{
+    EffectKind, Effects, HysteresisSpectrum, ENVELOPE_SPEEDS_MPS, SPECTRUM_YIELDS_PA,
+};
 use crate::model::plant::Plant;
 
 /// Effects fitted on runs.
@@ -42,6 +44,9 @@ pub struct CandidateFit {
     /// For `parameters`: whether the re-estimate is plausible
     /// ([`grey_box::PLAUSIBLE`], none at a bound); true for the others.
     pub plausible: bool,
+    /// Whether the effect is in its general family (its named form did not
+    /// hold): named candidates that hold go first ([`policy::decide`]).
+    pub general: bool,
 }
 
 /// Two effects fitted jointly.
@@ -142,9 +147,13 @@ impl Fitter<'_> {
             .map(|&k| {
                 let (mut f, mut form, estimates, plausible) = self.fit_kind(k);
                 let mut after_check = gap(self.check, self.base, &f.effects, self.dt_s);
+                let mut general = false;
                 // The named form first; where it does not hold, the general
                 // family of the same part of the rig.
-                if !policy::explains(before_fit, before_check, f.gap, after_check) {
+                let named_fit = Shrink::new(before_fit, f.gap).shrink;
+                if !policy::explains(before_fit, before_check, f.gap, after_check)
+                    && worth_general(k, named_fit)
+                {
                     if let Some((g, g_check)) = self.fit_general(k) {
                         if policy::explains(before_fit, before_check, g.gap, g_check) {
                             form = format!(
@@ -154,6 +163,7 @@ impl Fitter<'_> {
                                 100.0 * Shrink::new(before_check, after_check).shrink,
                             );
                             (f, after_check) = (g, g_check);
+                            general = true;
                         } else {
                             form = format!(
                                 "{form} ({} tried: fit shrink {:.0} %, check shrink {:.0} %)",
@@ -185,6 +195,7 @@ impl Fitter<'_> {
                     },
                     effects: f.effects,
                     plausible,
+                    general,
                 }
             })
             .collect();
@@ -211,8 +222,51 @@ impl Fitter<'_> {
                 let check = gap(self.check, self.base, &effects, self.dt_s);
                 Some((fit, check))
             }
+            EffectKind::HoseHysteresis => {
+                let (spectrum, gap_fit) = self.fit_spectrum()?;
+                let effects = Effects {
+                    hose_spectrum: Some(spectrum),
+                    ..Effects::NONE
+                };
+                let fit = Fitted {
+                    effects,
+                    gap: gap_fit,
+                    evals: 1,
+                };
+                Some((fit, gap(self.check, self.base, &effects, self.dt_s)))
+            }
             _ => None,
         }
+    }
+
+    /// The hose wall's general family: the compliances of the hysteresis
+    /// spectrum ([`HysteresisSpectrum`]) by least squares on the fit runs'
+    /// block-mean residuals (Levenberg-Marquardt, non-negative, in units of
+    /// 1e-13 m^3/Pa, from a small equal share each), with the gap there;
+    /// `None` when the plant cannot take it (an implicit GRNN hose) or it
+    /// does not lower the gap.
+    fn fit_spectrum(&self) -> Option<(HysteresisSpectrum, f64)> {
+        const UNIT: f64 = 1e-13;
+        const N: usize = SPECTRUM_YIELDS_PA.len();
+        let make = |x: &[f64]| HysteresisSpectrum {
+            c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
+        };
+        let with = |x: &[f64]| Effects {
+            hose_spectrum: Some(make(x)),
+            ..Effects::NONE
+        };
+        let f = |x: &[f64]| lsq::residuals(self.fit, self.base, &with(x), self.dt_s);
+        let r = lsq::levenberg_marquardt(
+            &f,
+            &[0.0; N],
+            None,
+            &[0.1; N],
+            &[0.0; N],
+            &[50.0; N],
+            SPECTRUM_ITERS,
+        )?;
+        let g = gap(self.fit, self.base, &with(&r.x), self.dt_s);
+        (g < gap(self.fit, self.base, &Effects::NONE, self.dt_s)).then(|| (make(&r.x), g))
     }
 
     /// Fit one candidate on the fit runs: its effects and gap, the form that
@@ -291,11 +345,15 @@ impl Fitter<'_> {
             .min_by(|a, b| a.2.gap.total_cmp(&b.2.gap))?;
         // A first effect in its general family keeps its fit, as one
         // outside the catalogue does.
-        let general = start.effects.servo_envelope.is_some();
+        let general = |k: &EffectKind| match k {
+            EffectKind::MotorLimit => start.effects.servo_envelope.is_some(),
+            EffectKind::HoseHysteresis => start.effects.hose_spectrum.is_some(),
+            _ => false,
+        };
         let free: Vec<EffectKind> = [first, second]
             .into_iter()
             .filter(|k| EffectKind::CATALOGUE.contains(k))
-            .filter(|k| !(general && *k == EffectKind::MotorLimit))
+            .filter(|k| !general(k))
             .collect();
         let joint = self.fit_effects(&start.effects, &free, 2 * self.max_evals);
         Some(PairFit {
@@ -307,6 +365,9 @@ impl Fitter<'_> {
         })
     }
 }
+
+/// Jacobians of the hysteresis spectrum's least-squares fit.
+const SPECTRUM_ITERS: usize = 6;
 
 /// Points of the coarse grid of a one-effect fit: 9 for one parameter, 5 x 5
 /// for two, 3 x 3 x 3 for three.
@@ -330,6 +391,18 @@ pub fn estimate_params(est: &[Estimate]) -> BTreeMap<String, f64> {
     m
 }
 
+/// Whether to fit `kind`'s general family after its named form shrank the
+/// fit runs' gap by `named_fit_shrink`: the hose wall's spectrum (a costly
+/// least-squares fit of five compliances) only where the named form shows
+/// the wall's hysteresis at least in part (10 %); the servo's envelope
+/// gates itself on the encoder's gap ([`prefit::servo_envelope`]).
+fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
+    match kind {
+        EffectKind::HoseHysteresis => named_fit_shrink >= 0.1,
+        _ => true,
+    }
+}
+
 /// What `form` says of the general family of `kind`.
 fn general_form(kind: EffectKind) -> &'static str {
     match kind {
@@ -345,6 +418,13 @@ fn general_form(kind: EffectKind) -> &'static str {
 /// for `motor_limit` in its general family the mass and the available force
 /// at each knot, `force_n_at_<speed>_mps`).
 pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
+    if let (EffectKind::HoseHysteresis, Some(h)) = (kind, e.hose_spectrum) {
+        return SPECTRUM_YIELDS_PA
+            .iter()
+            .zip(h.c_m3pp)
+            .map(|(y, c)| (format!("c_m3pp_at_yield_{y:.0e}_pa"), c))
+            .collect();
+    }
     if let (EffectKind::MotorLimit, Some(s)) = (kind, e.servo_envelope) {
         let mut m = BTreeMap::from([("mass_eq_kg".to_string(), s.mass_eq_kg)]);
         for (v, f) in ENVELOPE_SPEEDS_MPS.iter().zip(s.force_n) {

@@ -145,10 +145,18 @@ pub fn decide(
         let c = &ranked[*i];
         c.plausible && explains(c.candidate.fit_after, c.candidate.check_after)
     };
+    // The best named candidate if it holds; else the best general family
+    // that holds (the named forms are tried first: a flexible family must
+    // not take the verdict from a named form that explains the gap).
     let effect = ranked
         .iter()
-        .position(|c| c.kind != EffectKind::Parameters)
-        .filter(holds);
+        .position(|c| c.kind != EffectKind::Parameters && !c.general)
+        .filter(holds)
+        .or_else(|| {
+            (0..ranked.len())
+                .filter(|i| ranked[*i].kind != EffectKind::Parameters && ranked[*i].general)
+                .find(holds)
+        });
     let params = ranked
         .iter()
         .position(|c| c.kind == EffectKind::Parameters)

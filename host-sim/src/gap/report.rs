@@ -9,7 +9,9 @@ use super::replay::{measured, Replay, CHANNELS};
 use super::run::Run;
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
-use crate::model::effects::{ServoEnvelope, ENVELOPE_SPEEDS_MPS};
+use crate::model::effects::{
+    self, HysteresisSpectrum, ServoEnvelope, ENVELOPE_SPEEDS_MPS, SPECTRUM_YIELDS_PA,
+};
 
 /// Why the report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -127,6 +129,36 @@ fn envelope_figure(path: &Path, s: &ServoEnvelope, details: &Details) -> Result<
     plot::save(path, &[panel], 900, 420)
 }
 
+/// The learned hose-wall hysteresis: the wall's hysteretic volume of one
+/// line over its pressure on a cycle 0 -> 4 MPa -> 1 MPa -> 3 MPa -> 0 (the
+/// spectrum's elements driven by that pressure, their engaged compliances
+/// integrated), so that the loop's width and shape can be read.
+fn spectrum_figure(path: &Path, h: &HysteresisSpectrum) -> Result<(), PlotError> {
+    let mut z = [0.0; SPECTRUM_YIELDS_PA.len()];
+    let (mut p, mut v) = (0.0_f64, 0.0_f64);
+    let mut loop_pts = vec![(0.0, 0.0)];
+    let dp_step = 2e3;
+    for target in [4e6, 1e6, 3e6, 0.0] {
+        while (target - p).abs() > 0.5 * dp_step {
+            let dp = dp_step.copysign(target - p);
+            for (i, zi) in z.iter_mut().enumerate() {
+                let el = h.element(i);
+                v += effects::hysteresis_engagement(&el, *zi, dp) * el.c_m3pp * dp;
+                *zi += effects::hysteresis_rate(&el, *zi, dp);
+            }
+            p += dp;
+            loop_pts.push((p * 1e-6, v * 1e9));
+        }
+    }
+    let panel = Panel::new(
+        "hose_hysteresis, general family: the wall's hysteretic volume of one line over a pressure cycle",
+        "line pressure [MPa]",
+        "hysteretic wall volume [mm^3]",
+    )
+    .with(Series::line("0 -> 4 -> 1 -> 3 -> 0 MPa", loop_pts));
+    plot::save(path, &[panel], 900, 420)
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -172,6 +204,20 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
     }
     if let (Some(form), Some(sub)) = (&d.form, &d.subsystem) {
         let _ = writeln!(md, "Form that held: {form} (subsystem: {sub}).\n");
+    }
+    if let Some(h) = &details.effects.hose_spectrum {
+        spectrum_figure(&dir.join("hose_spectrum.png"), h)?;
+        let _ = writeln!(
+            md,
+            "## The hose wall's learned hysteresis\n\n\
+             | element yield [kPa] | {} |\n|---|{}\n| compliance when engaged [m^3/Pa] | {} |\n\n\
+             ![hose hysteresis](hose_spectrum.png)\n",
+            SPECTRUM_YIELDS_PA
+                .map(|y| format!("{:.0}", y * 1e-3))
+                .join(" | "),
+            "---|".repeat(SPECTRUM_YIELDS_PA.len()),
+            h.c_m3pp.map(|c| format!("{c:.2e}")).join(" | "),
+        );
     }
     if let Some(s) = &details.effects.servo_envelope {
         envelope_figure(&dir.join("servo_envelope.png"), s, details)?;

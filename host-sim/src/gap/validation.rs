@@ -24,7 +24,7 @@ use super::diagnosis::{Diagnosis, Verdict};
 use super::policy::NONE_GAP;
 use super::run::Run;
 use crate::io::runlog::RunLog;
-use crate::model::effects::{EffectKind, Effects};
+use crate::model::effects::{EffectKind, Effects, HysteresisSpectrum, ServoEnvelope};
 use crate::model::plant::Plant;
 use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
 use crate::model::sensors::SensorMode;
@@ -54,8 +54,10 @@ fn case(name: &str, list: &[(EffectKind, &[f64])]) -> Case {
 }
 
 /// The cases: clean runs, every effect of the catalogue small and large,
-/// three pairs, four rigs whose nominal parameters are off (`parameters`)
-/// and five sensors off their calibration (`sensor_calibration`).
+/// three pairs, four rigs whose nominal parameters are off (`parameters`),
+/// five sensors off their calibration (`sensor_calibration`), and two
+/// effects in shapes their named forms cannot take (a servo force falling
+/// with speed, a hose wall with two hysteresis scales).
 pub fn cases() -> Vec<Case> {
     use EffectKind::*;
     vec![
@@ -122,6 +124,28 @@ pub fn cases() -> Vec<Case> {
             "parameters: servo time constant +50 %",
             &[(Parameters, &[1.0, 1.0, 1.0, 1.0, 1.5])],
         ),
+        // Shapes the named forms cannot take: their general families.
+        Case {
+            name: "motor_limit (torque-speed curve)".into(),
+            truth: vec![MotorLimit],
+            effects: Effects {
+                servo_envelope: Some(ServoEnvelope {
+                    mass_eq_kg: 150.0,
+                    force_n: [1100.0, 1100.0, 900.0, 600.0, 300.0, 0.0],
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            name: "hose_hysteresis (two scales)".into(),
+            truth: vec![HoseHysteresis],
+            effects: Effects {
+                hose_spectrum: Some(HysteresisSpectrum {
+                    c_m3pp: [1.5e-13, 0.0, 0.0, 0.0, 3e-13],
+                }),
+                ..Effects::NONE
+            },
+        },
         // channel (0 xo, 1 xi, 2 p1, 3 p2, 4 ft), gain, offset (SI), quad.
         case(
             "sensor_calibration: LVDT gain 1.03",

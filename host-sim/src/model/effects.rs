@@ -14,6 +14,7 @@
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
 //! | `motor_limit`, general family ([`ServoEnvelope`]) | the drive's force envelope over speed, learned from the encoder: the speed loop's force m a + F is clamped to +-A(abs(v)) while motoring (A piecewise linear over 0 ... 0.1 m/s, non-increasing: a torque-speed curve of any shape) and to +-A(0) while braking; no separate speed cap (A falling to 0 is one) | `mass_eq_kg`, `force_n` (A at the knots [`ENVELOPE_SPEEDS_MPS`]) |
+//! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa, no stuck share), each adding its compliance as far as it is engaged | `c_m3pp` (five compliances, learned) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
 //! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
@@ -213,6 +214,36 @@ pub struct HoseHysteresis {
     pub stuck_share: f64,
     /// Pressure change after a reversal over which the wall yields, Pa.
     pub yield_pa: f64,
+}
+
+/// Yields of the elements of a [`HysteresisSpectrum`], Pa: two per decade
+/// from 10 kPa to 1 MPa.
+pub const SPECTRUM_YIELDS_PA: [f64; 5] = [1e4, 3e4, 1e5, 3e5, 1e6];
+
+/// The general family of the hose wall (`hose_hysteresis` in any shape): a
+/// discrete Prandtl-Ishlinskii operator on each line's pressure. Element i
+/// is a hysteretic pressure of yield [`SPECTRUM_YIELDS_PA`]`[i]` (the Dahl
+/// element of the named form, without a stuck share) that adds the
+/// compliance `c_m3pp[i]` as far as it is engaged; the wall's hysteretic
+/// volume is the weighted sum of the elements' outputs. The weights, learned
+/// from the runs, shape the loop: narrow loops from small yields, wide ones
+/// from large.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct HysteresisSpectrum {
+    /// Compliance of each element when engaged, m^3/Pa (non-negative).
+    pub c_m3pp: [f64; 5],
+}
+
+impl HysteresisSpectrum {
+    /// Element `i` as a Dahl element of the named form.
+    pub fn element(&self, i: usize) -> HoseHysteresis {
+        HoseHysteresis {
+            c_m3pp: self.c_m3pp[i],
+            stuck_share: 0.0,
+            yield_pa: SPECTRUM_YIELDS_PA[i],
+        }
+    }
 }
 
 /// Accumulator gas temperature relaxation.
@@ -448,6 +479,9 @@ pub struct Effects {
     pub servo_envelope: Option<ServoEnvelope>,
     /// `hose_hysteresis`.
     pub hose_hysteresis: Option<HoseHysteresis>,
+    /// `hose_hysteresis` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub hose_spectrum: Option<HysteresisSpectrum>,
     /// `accumulator_thermal`.
     pub accumulator_thermal: Option<AccumulatorThermal>,
     /// `sensor_calibration`.
@@ -655,6 +689,7 @@ impl Effects {
         motor_limit: None,
         servo_envelope: None,
         hose_hysteresis: None,
+        hose_spectrum: None,
         accumulator_thermal: None,
         sensor_calibration: None,
         parameters: None,
@@ -905,6 +940,25 @@ impl Effects {
                     EffectKind::MotorLimit,
                     "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
                      and non-increasing with speed",
+                );
+            }
+        }
+        if let Some(h) = self.hose_spectrum {
+            if self.hose_hysteresis.is_some() {
+                return constraint(
+                    EffectKind::HoseHysteresis,
+                    "the named form and the hysteresis spectrum exclude each other",
+                );
+            }
+            let most = VALID_SPAN * HOSE_HYSTERESIS_PARAMS[0].max;
+            if !h
+                .c_m3pp
+                .iter()
+                .all(|c| c.is_finite() && (0.0..=most).contains(c))
+            {
+                return constraint(
+                    EffectKind::HoseHysteresis,
+                    "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
                 );
             }
         }

@@ -30,8 +30,11 @@
 use crate::model::effects::{self, EffectError, Effects, T_AMBIENT_K};
 use crate::model::plant::{HoseModel, Plant, PressureRates, State, N_STATES};
 
+/// Elements of the hysteresis spectrum per line.
+const NS: usize = effects::SPECTRUM_YIELDS_PA.len();
+
 /// Number of extra states the effects carry.
-pub const N_EXT: usize = 4;
+pub const N_EXT: usize = 4 + 2 * NS;
 
 /// Extra states of the effects (unused ones stay at their initial value).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -43,11 +46,18 @@ pub struct Ext {
     pub h_pa: [f64; 2],
     /// Accumulator gas temperature (`accumulator_thermal`), K.
     pub t_gas_k: f64,
+    /// Hysteretic pressures of the spectrum's elements per line
+    /// (`hose_hysteresis`, general family), Pa.
+    pub hs_pa: [[f64; NS]; 2],
 }
 
 impl Ext {
     fn as_array(&self) -> [f64; N_EXT] {
-        [self.xp_m, self.h_pa[0], self.h_pa[1], self.t_gas_k]
+        let mut a = [0.0; N_EXT];
+        a[..4].copy_from_slice(&[self.xp_m, self.h_pa[0], self.h_pa[1], self.t_gas_k]);
+        a[4..4 + NS].copy_from_slice(&self.hs_pa[0]);
+        a[4 + NS..].copy_from_slice(&self.hs_pa[1]);
+        a
     }
 
     fn from_array(a: [f64; N_EXT]) -> Self {
@@ -55,8 +65,20 @@ impl Ext {
             xp_m: a[0],
             h_pa: [a[1], a[2]],
             t_gas_k: a[3],
+            hs_pa: [
+                std::array::from_fn(|i| a[4 + i]),
+                std::array::from_fn(|i| a[4 + NS + i]),
+            ],
         }
     }
+}
+
+/// Rates of the hysteretic pressures: the named form's per line, the
+/// spectrum's per line and element.
+#[derive(Clone, Copy, Debug, Default)]
+struct HystRates {
+    h: [f64; 2],
+    hs: [[f64; NS]; 2],
 }
 
 /// The state of a rig: the plant's state and the effects' extra states.
@@ -107,7 +129,10 @@ impl Rig {
             plant.hose_model(),
             HoseModel::Nonlinear | HoseModel::Linear | HoseModel::Rigid
         );
-        if !explicit && (effects.air.is_some() || effects.hose_hysteresis.is_some()) {
+        let hose_effect = effects.air.is_some()
+            || effects.hose_hysteresis.is_some()
+            || effects.hose_spectrum.is_some();
+        if !explicit && hose_effect {
             return Err(RigError::ImplicitHose(plant.hose_model().name()));
         }
         let plant_only = Effects {
@@ -160,6 +185,7 @@ impl Rig {
                 xp_m,
                 h_pa: [0.0, 0.0],
                 t_gas_k: T_AMBIENT_K,
+                hs_pa: [[0.0; NS]; 2],
             },
         }
     }
@@ -268,7 +294,11 @@ impl Rig {
             r.dvs2_m3ps,
             qa,
         ];
-        (d, [vp, dh[0], dh[1], dt_gas])
+        let mut de = [0.0; N_EXT];
+        de[..4].copy_from_slice(&[vp, dh.h[0], dh.h[1], dt_gas]);
+        de[4..4 + NS].copy_from_slice(&dh.hs[0]);
+        de[4 + NS..].copy_from_slice(&dh.hs[1]);
+        (d, de)
     }
 
     /// Pressure and hose-volume rates with the power piston (position in
@@ -282,7 +312,7 @@ impl Rig {
         vp: f64,
         dqa: f64,
         ql: f64,
-    ) -> (PressureRates, [f64; 2]) {
+    ) -> (PressureRates, HystRates) {
         let e = &self.effects;
         let p = self.plant.params();
         let mut xv = *x;
@@ -291,8 +321,8 @@ impl Rig {
         let q1 = flows.q1_m3ps - ql;
         let q2 = flows.q2_m3ps + dqa + ql;
         let mut r = self.plant.pressure_rates(&xv, q1, q2);
-        let mut dh = [0.0; 2];
-        if e.air.is_none() && e.hose_hysteresis.is_none() {
+        let mut dh = HystRates::default();
+        if e.air.is_none() && e.hose_hysteresis.is_none() && e.hose_spectrum.is_none() {
             return (r, dh);
         }
         let (v1, v2) = self.plant.line_volumes(xv.xi_m, xv.xo_m);
@@ -312,7 +342,21 @@ impl Rig {
                 let engaged = effects::hysteresis_engagement(h, z, dp);
                 c += engaged * h.c_m3pp - (1.0 - engaged) * h.stuck_share * c_wall;
                 dp = dp_nom * c_nom / c;
-                dh[j] = effects::hysteresis_rate(h, z, dp);
+                dh.h[j] = effects::hysteresis_rate(h, z, dp);
+            }
+            if let Some(spec) = &e.hose_spectrum {
+                // Engagement from the direction before the elements act (as
+                // the named form); the compliances add up.
+                let dp0 = dp;
+                for i in 0..NS {
+                    let el = spec.element(i);
+                    c += effects::hysteresis_engagement(&el, s.ext.hs_pa[j][i], dp0) * el.c_m3pp;
+                }
+                dp = dp_nom * c_nom / c;
+                for i in 0..NS {
+                    let el = spec.element(i);
+                    dh.hs[j][i] = effects::hysteresis_rate(&el, s.ext.hs_pa[j][i], dp);
+                }
             }
             if j == 0 {
                 r.dp1_paps = dp;
@@ -492,6 +536,53 @@ mod tests {
             assert!(diff > 1.0, "{}: {diff}", k.name());
             assert!(with.iter().all(|s| s.is_finite()), "{}", k.name());
         }
+    }
+
+    /// The hysteresis spectrum: zero compliances are the nominal rig and one
+    /// element the named form's Dahl element (no stuck share), to rounding
+    /// (the capacitance is summed in another order); two elements of
+    /// different yields differ from either.
+    #[test]
+    fn hysteresis_spectrum_is_a_sum_of_named_elements() {
+        let with = |c: [f64; NS]| {
+            let e = Effects {
+                hose_spectrum: Some(effects::HysteresisSpectrum { c_m3pp: c }),
+                ..Effects::NONE
+            };
+            run(&Rig::new(Plant::nominal(), e).unwrap())
+        };
+        let base = run(&rig(None));
+        let xs = |v: &[RigState]| {
+            v.iter()
+                .map(|s| (s.x.xo_m, s.x.p1_pa, s.x.p2_pa))
+                .collect::<Vec<_>>()
+        };
+        let same = |a: &[RigState], b: &[RigState]| {
+            xs(a).iter().zip(xs(b)).all(|(x, y)| {
+                (x.0 - y.0).abs() < 1e-12 && (x.1 - y.1).abs() < 1e-6 && (x.2 - y.2).abs() < 1e-6
+            })
+        };
+        assert!(same(&with([0.0; NS]), &base));
+        let one = with([0.0, 0.0, 1e-12, 0.0, 0.0]);
+        let named = run(&rig(Some((EffectKind::HoseHysteresis, &[1e-12, 0.0, 1e5]))));
+        assert!(same(&one, &named));
+        assert!(!same(&one, &base));
+        let two = with([5e-13, 0.0, 0.0, 0.0, 1e-12]);
+        for other in [&base, &named] {
+            let diff = xs(&two)
+                .iter()
+                .zip(xs(other))
+                .map(|(a, b)| (a.0 - b.0).abs() / 1e-6)
+                .fold(0.0, f64::max);
+            assert!(diff > 1.0, "{diff}");
+        }
+        // Both named and general at once are refused.
+        let mut e = Effects::NONE;
+        e.set(EffectKind::HoseHysteresis, Some(&[1e-12, 0.0, 1e5]));
+        e.hose_spectrum = Some(effects::HysteresisSpectrum {
+            c_m3pp: [1e-13; NS],
+        });
+        assert!(Rig::new(Plant::nominal(), e).is_err());
     }
 
     #[test]

@@ -220,6 +220,10 @@ pub fn log_meta_with(
             f.join(" ")
         ));
     }
+    if let Some(h) = &spec.effects.hose_spectrum {
+        let c: Vec<String> = h.c_m3pp.iter().map(|c| format!("{c:e}")).collect();
+        effects.push(format!("hose_spectrum:c_m3pp=[{}]", c.join(" ")));
+    }
     vec![
         (
             "effects",
