@@ -28,12 +28,19 @@ const FLAT_TOL: f64 = 0.05;
 
 /// Squared Xi error (in units of the run's Xi scale) of the servo model
 /// `servo` on one run; stops early once above `stop`.
-fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, stop: f64) -> f64 {
+fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, fine: bool, stop: f64) -> f64 {
     let p = plant.params();
     let log = &run.log;
     let n = log.len();
     let scale = run.scale[1];
-    let sub = 2;
+    // Two midpoint steps per row; `fine`: steps of at most 0.5 ms, as the
+    // replay takes (on 10 ms rows two steps of 5 ms against the servo's
+    // 10 ms time constant leave the nominal servo itself far off).
+    let sub = if fine {
+        ((log.dt_s() / 5e-4).ceil() as usize).max(2)
+    } else {
+        2
+    };
     let h = log.dt_s() / sub as f64;
     let (mut xi, mut vi) = (log.xi_m[0], 0.0);
     let mut err = 0.0;
@@ -64,10 +71,10 @@ fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, stop: f64) -> f64 {
 }
 
 /// Squared Xi error of the servo model over `runs` (see [`motor_limit`]).
-pub fn total_error(runs: &[Run], plant: &Plant, servo: Servo<'_>, stop: f64) -> f64 {
+pub fn total_error(runs: &[Run], plant: &Plant, servo: Servo<'_>, fine: bool, stop: f64) -> f64 {
     let mut e = 0.0;
     for r in runs {
-        e += servo_error(r, plant, servo, stop - e);
+        e += servo_error(r, plant, servo, fine, stop - e);
         if e > stop {
             break;
         }
@@ -102,8 +109,9 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
         speed_max_mps: x[2],
     };
     let at = |u: [f64; 3]| -> [f64; 3] { std::array::from_fn(|i| bounds[i].at(u[i])) };
-    let err = |u: [f64; 3], stop: f64| total_error(runs, plant, Servo::Limit(&make(&at(u))), stop);
-    let nominal = total_error(runs, plant, Servo::Nominal, f64::INFINITY);
+    let err =
+        |u: [f64; 3], stop: f64| total_error(runs, plant, Servo::Limit(&make(&at(u))), false, stop);
+    let nominal = total_error(runs, plant, Servo::Nominal, false, f64::INFINITY);
     let unit = |i: usize, n: usize| i as f64 / (n - 1) as f64;
     // Best (error, [force, mass, speed] on the unit scales) with the speed at `uv`.
     let search = |uv: f64, stop: f64| -> (f64, [f64; 3]) {
@@ -164,7 +172,8 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
     if e >= nominal {
         return None;
     }
-    let mut f = |x: &[f64], stop: f64| total_error(runs, plant, Servo::Limit(&make(x)), stop);
+    let mut f =
+        |x: &[f64], stop: f64| total_error(runs, plant, Servo::Limit(&make(x)), false, stop);
     let r = minimize(&mut f, &bounds, &at(u), 3, 27 + 60);
     (r.value < nominal).then_some(r.x)
 }
@@ -199,9 +208,9 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
         if !s.is_valid() {
             return f64::INFINITY;
         }
-        total_error(runs, plant, Servo::Envelope(&s), stop)
+        total_error(runs, plant, Servo::Envelope(&s), true, stop)
     };
-    let nominal = total_error(runs, plant, Servo::Nominal, f64::INFINITY);
+    let nominal = total_error(runs, plant, Servo::Nominal, true, f64::INFINITY);
     // Only where the gap is in the servo: the nominal servo leaves Xi off by
     // more than its scale on average.
     let samples: usize = runs.iter().map(|r| r.log.len()).sum();
