@@ -242,7 +242,7 @@ impl Fitter<'_> {
     /// The hose wall's general family: the compliances of the hysteresis
     /// spectrum ([`HysteresisSpectrum`]) by least squares on the fit runs'
     /// block-mean residuals (Levenberg-Marquardt, non-negative, in units of
-    /// 1e-13 m^3/Pa, from a small equal share each), with the gap there;
+    /// 1e-13 m^3/Pa, from zero: the nominal wall), with the gap there;
     /// `None` when the plant cannot take it (an implicit GRNN hose) or it
     /// does not lower the gap.
     fn fit_spectrum(&self) -> Option<(HysteresisSpectrum, f64)> {
@@ -409,6 +409,9 @@ fn general_form(kind: EffectKind) -> &'static str {
         EffectKind::MotorLimit => {
             "general: the servo's force envelope over speed, learned from the encoder"
         }
+        EffectKind::HoseHysteresis => {
+            "general: a Prandtl-Ishlinskii spectrum of the hose wall (five yields, 10 kPa to 1 MPa)"
+        }
         _ => "general",
     }
 }
@@ -416,7 +419,8 @@ fn general_form(kind: EffectKind) -> &'static str {
 /// The parameters of `kind` in `e` by name (for `sensor_calibration` the
 /// offset carries its channel's unit: `offset_m`, `offset_pa`, `offset_n`;
 /// for `motor_limit` in its general family the mass and the available force
-/// at each knot, `force_n_at_<speed>_mps`).
+/// at each knot, `force_n_at_<speed>_mps`; for `hose_hysteresis` in its
+/// general family each element's compliance, `c_m3pp_at_yield_<yield>_pa`).
 pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
     if let (EffectKind::HoseHysteresis, Some(h)) = (kind, e.hose_spectrum) {
         return SPECTRUM_YIELDS_PA

@@ -123,7 +123,9 @@ pub struct Decision {
 /// explains: P, unless a pair of two named effects explains the gap too and
 /// P is not clearly better than the pair (then the pair's first effect);
 /// neither: the pair's first effect when the pair explains the gap
-/// together; else `unexplained`.
+/// together; else `unexplained`. E is the best candidate in a named form;
+/// only when it does not explain the gap, the best one in its general
+/// family that does (named forms first).
 pub fn decide(
     pooled: f64,
     before_fit: f64,

@@ -129,11 +129,11 @@ fn envelope_figure(path: &Path, s: &ServoEnvelope, details: &Details) -> Result<
     plot::save(path, &[panel], 900, 420)
 }
 
-/// The learned hose-wall hysteresis: the wall's hysteretic volume of one
-/// line over its pressure on a cycle 0 -> 4 MPa -> 1 MPa -> 3 MPa -> 0 (the
+/// The wall's hysteretic volume of one line (mm^3) over its pressure (MPa)
+/// on a cycle 0 -> 4 MPa -> 1 MPa -> 3 MPa -> 0, 2 kPa per point: the
 /// spectrum's elements driven by that pressure, their engaged compliances
-/// integrated), so that the loop's width and shape can be read.
-fn spectrum_figure(path: &Path, h: &HysteresisSpectrum) -> Result<(), PlotError> {
+/// integrated.
+fn spectrum_loop(h: &HysteresisSpectrum) -> Vec<(f64, f64)> {
     let mut z = [0.0; SPECTRUM_YIELDS_PA.len()];
     let (mut p, mut v) = (0.0_f64, 0.0_f64);
     let mut loop_pts = vec![(0.0, 0.0)];
@@ -150,12 +150,18 @@ fn spectrum_figure(path: &Path, h: &HysteresisSpectrum) -> Result<(), PlotError>
             loop_pts.push((p * 1e-6, v * 1e9));
         }
     }
+    loop_pts
+}
+
+/// The learned hose-wall hysteresis ([`spectrum_loop`]), so that the loop's
+/// width and shape can be read.
+fn spectrum_figure(path: &Path, h: &HysteresisSpectrum) -> Result<(), PlotError> {
     let panel = Panel::new(
         "hose_hysteresis, general family: the wall's hysteretic volume of one line over a pressure cycle",
         "line pressure [MPa]",
         "hysteretic wall volume [mm^3]",
     )
-    .with(Series::line("0 -> 4 -> 1 -> 3 -> 0 MPa", loop_pts));
+    .with(Series::line("0 -> 4 -> 1 -> 3 -> 0 MPa", spectrum_loop(h)));
     plot::save(path, &[panel], 900, 420)
 }
 
@@ -327,4 +333,32 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
     let _ = writeln!(md, "Diagnosis took {:.1} s.", d.elapsed_s);
     let path = dir.join("report.md");
     Ok(files::write(&path, md)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The learned loop is a hysteresis loop: on the way down the wall holds
+    /// more volume than on the way up at the same pressure, more so with a
+    /// larger yield; without compliance it is flat.
+    #[test]
+    fn spectrum_loop_opens_with_the_yield() {
+        let width_at_2mpa = |c: [f64; 5]| {
+            let pts = spectrum_loop(&HysteresisSpectrum { c_m3pp: c });
+            let near = |from: usize, to: usize| {
+                pts[from..to]
+                    .iter()
+                    .min_by(|a, b| (a.0 - 2.0).abs().total_cmp(&(b.0 - 2.0).abs()))
+                    .expect("points")
+                    .1
+            };
+            // Up to 4 MPa: the first 2 000 points; then down to 1 MPa.
+            near(2000, 3500) - near(0, 2000)
+        };
+        assert_eq!(width_at_2mpa([0.0; 5]), 0.0);
+        let narrow = width_at_2mpa([1e-13, 0.0, 0.0, 0.0, 0.0]);
+        let wide = width_at_2mpa([0.0, 0.0, 0.0, 1e-13, 0.0]);
+        assert!(narrow > 0.0 && wide > narrow, "{narrow} {wide}");
+    }
 }
