@@ -15,7 +15,7 @@ use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
 use super::progress::Progress;
 use super::run::Run;
-use super::{calibrate, grey_box, lsq, policy, prefit};
+use super::{calibrate, grey_box, lsq, prefit};
 use crate::model::effects::{
     EffectKind, Effects, HysteresisSpectrum, ENVELOPE_SPEEDS_MPS, SPECTRUM_YIELDS_PA,
 };
@@ -45,7 +45,7 @@ pub struct CandidateFit {
     /// ([`grey_box::PLAUSIBLE`], none at a bound); true for the others.
     pub plausible: bool,
     /// Whether the effect is in its general family (its named form did not
-    /// hold): named candidates that hold go first ([`policy::decide`]).
+    /// hold): the verdict's policy puts named candidates that hold first.
     pub general: bool,
 }
 
@@ -135,11 +135,14 @@ impl Fitter<'_> {
 
     /// Every effect fitted on the fit runs and evaluated on the check runs
     /// (in parallel), ranked by the shrink on the fit runs, best first.
-    /// `before_*` are the nominal model's gaps.
+    /// `before_*` are the nominal model's gaps; `explains(fit_after,
+    /// check_after)` is the verdict policy's test of a fitted model (where a
+    /// named form fails it, the general family of its part is fitted).
     pub fn rank(
         &self,
         before_fit: f64,
         before_check: f64,
+        explains: &(dyn Fn(f64, f64) -> bool + Sync),
         progress: &Progress,
     ) -> Vec<CandidateFit> {
         let mut cands: Vec<CandidateFit> = EffectKind::ALL
@@ -151,11 +154,9 @@ impl Fitter<'_> {
                 // The named form first; where it does not hold, the general
                 // family of the same part of the rig.
                 let named_fit = Shrink::new(before_fit, f.gap).shrink;
-                if !policy::explains(before_fit, before_check, f.gap, after_check)
-                    && worth_general(k, named_fit)
-                {
+                if !explains(f.gap, after_check) && worth_general(k, named_fit) {
                     if let Some((g, g_check)) = self.fit_general(k) {
-                        if policy::explains(before_fit, before_check, g.gap, g_check) {
+                        if explains(g.gap, g_check) {
                             form = format!(
                                 "{} (the named form: fit shrink {:.0} %, check shrink {:.0} %)",
                                 general_form(k),

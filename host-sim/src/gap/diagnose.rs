@@ -197,7 +197,9 @@ pub fn diagnose(
     };
     // Candidates: every effect, fitted on the fit runs, evaluated on the check runs.
     let progress = Progress::candidates(opts.progress, EffectKind::ALL.len());
-    let ranked = fitter.rank(n.fit, n.check, &progress);
+    let explains =
+        |fit_after: f64, check_after: f64| policy::explains(n.fit, n.check, fit_after, check_after);
+    let ranked = fitter.rank(n.fit, n.check, &explains, &progress);
     progress.finish();
     // A second effect where the best single one leaves a gap beyond the noise.
     let pair = if policy::wants_pair(n.pooled, &ranked[0], opts.second_effect) {
