@@ -155,12 +155,12 @@ impl Fitter<'_> {
                 // family of the same part of the rig.
                 let named_fit = Shrink::new(before_fit, f.gap).shrink;
                 if !explains(f.gap, after_check) && worth_general(k, named_fit) {
-                    if let Some((g, g_check)) = self.fit_general(k) {
+                    if let Some((g, g_check)) = self.fit_general(k, before_fit) {
                         if explains(g.gap, g_check) {
                             form = format!(
                                 "{} (the named form: fit shrink {:.0} %, check shrink {:.0} %)",
                                 general_form(k),
-                                100.0 * Shrink::new(before_fit, f.gap).shrink,
+                                100.0 * named_fit,
                                 100.0 * Shrink::new(before_check, after_check).shrink,
                             );
                             (f, after_check) = (g, g_check);
@@ -204,40 +204,36 @@ impl Fitter<'_> {
         cands
     }
 
-    /// The general family of `k`'s part of the rig fitted on the fit runs,
-    /// with its gap there and on the check runs; `None` where `k` has no
-    /// general family or it fits no better than the nominal model.
-    fn fit_general(&self, k: EffectKind) -> Option<(Fitted, f64)> {
-        match k {
+    /// The general family of `k`'s part of the rig fitted on the fit runs
+    /// (whose nominal gap is `before_fit`), with its gap there and on the
+    /// check runs; `None` where `k` has no general family or it fits no
+    /// better than the nominal model.
+    fn fit_general(&self, k: EffectKind, before_fit: f64) -> Option<(Fitted, f64)> {
+        let (effects, gap_fit) = match k {
             EffectKind::MotorLimit => {
                 let (env, _, _) = prefit::servo_envelope(self.fit, self.base)?;
                 let effects = Effects {
                     servo_envelope: Some(env),
                     ..Effects::NONE
                 };
-                let fit = Fitted {
-                    effects,
-                    gap: gap(self.fit, self.base, &effects, self.dt_s),
-                    evals: 1,
-                };
-                let check = gap(self.check, self.base, &effects, self.dt_s);
-                Some((fit, check))
+                (effects, gap(self.fit, self.base, &effects, self.dt_s))
             }
             EffectKind::HoseHysteresis => {
-                let (spectrum, gap_fit) = self.fit_spectrum()?;
+                let (spectrum, gap_fit) = self.fit_spectrum(before_fit)?;
                 let effects = Effects {
                     hose_spectrum: Some(spectrum),
                     ..Effects::NONE
                 };
-                let fit = Fitted {
-                    effects,
-                    gap: gap_fit,
-                    evals: 1,
-                };
-                Some((fit, gap(self.check, self.base, &effects, self.dt_s)))
+                (effects, gap_fit)
             }
-            _ => None,
-        }
+            _ => return None,
+        };
+        let fit = Fitted {
+            effects,
+            gap: gap_fit,
+            evals: 1,
+        };
+        Some((fit, gap(self.check, self.base, &effects, self.dt_s)))
     }
 
     /// The hose wall's general family: the compliances of the hysteresis
@@ -245,8 +241,8 @@ impl Fitter<'_> {
     /// block-mean residuals (Levenberg-Marquardt, non-negative, in units of
     /// 1e-13 m^3/Pa, from zero: the nominal wall), with the gap there;
     /// `None` when the plant cannot take it (an implicit GRNN hose) or it
-    /// does not lower the gap.
-    fn fit_spectrum(&self) -> Option<(HysteresisSpectrum, f64)> {
+    /// does not lower the fit runs' nominal gap `before_fit`.
+    fn fit_spectrum(&self, before_fit: f64) -> Option<(HysteresisSpectrum, f64)> {
         const UNIT: f64 = 1e-13;
         const N: usize = SPECTRUM_YIELDS_PA.len();
         let make = |x: &[f64]| HysteresisSpectrum {
@@ -267,7 +263,7 @@ impl Fitter<'_> {
             SPECTRUM_ITERS,
         )?;
         let g = gap(self.fit, self.base, &with(&r.x), self.dt_s);
-        (g < gap(self.fit, self.base, &Effects::NONE, self.dt_s)).then(|| (make(&r.x), g))
+        (g < before_fit).then(|| (make(&r.x), g))
     }
 
     /// Fit one candidate on the fit runs: its effects and gap, the form that
