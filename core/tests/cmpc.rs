@@ -11,7 +11,9 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix notation
 
-use dca_core::cmpc::{solve_box_qp, Cmpc, CmpcDesign, CmpcGains, CmpcInput, CmpcParams, N_MOVES};
+use dca_core::cmpc::{
+    solve_box_qp, Cmpc, CmpcDesign, CmpcGains, CmpcInput, CmpcParams, N_MOVES, PREVIEW_HORIZON_S,
+};
 use dca_core::design::{DesignError, PredictionModel};
 use dca_core::mpc::{Limits, Observed};
 use dca_core::params::PlantParams;
@@ -219,6 +221,41 @@ fn the_solver_finds_the_kkt_point_of_an_independent_f64_enumeration() {
         active.iter().all(|&n| n > 0),
         "active-set counts {active:?}"
     );
+}
+
+#[test]
+fn the_preview_extrapolates_no_further_than_its_horizon() {
+    // The gradient's coefficients of the reference r, its rate and its
+    // curvature are -2 sum_i p_i (1, t_i, t_i^2 / 2) over the horizon's rows,
+    // with t_i capped at PREVIEW_HORIZON_S: their ratios are weighted means of
+    // the capped times, so at most the cap. A horizon shorter than the cap
+    // has the uncapped times (ratios within its own length).
+    let t_cap = PREVIEW_HORIZON_S;
+    for (np, blocks) in [(100, [2, 3, 6]), (60, [1, 2, 4]), (4, [1, 1, 2])] {
+        let p = CmpcParams {
+            np,
+            blocks,
+            ..CmpcParams::LIMIT
+        };
+        let d = CmpcDesign::new(&PlantParams::NOMINAL, p).unwrap();
+        let t_max = (np as f64 * p.ts_s).min(t_cap);
+        for j in 0..N_MOVES {
+            let (r, v, a) = (d.coef[j][4], d.coef[j][5], d.coef[j][6]);
+            // The reference enters with a minus sign, its preview with the
+            // share's (1 in `limit`): same sign, so the ratios are positive.
+            assert!(r.abs() > 0.0, "np {np} move {j}: no reference weight");
+            let (tv, ta) = (v / r, a / r);
+            assert!(tv > 0.0 && tv <= t_max * (1.0 + 1e-12), "np {np}: {tv} s");
+            assert!(
+                ta > 0.0 && ta <= 0.5 * t_max * t_max * (1.0 + 1e-12),
+                "np {np}: {ta} s^2"
+            );
+        }
+        // The long horizon reaches the cap: its later moves see mostly capped rows.
+        if np == 100 {
+            assert!(d.coef[2][5] / d.coef[2][4] > 0.9 * t_cap);
+        }
+    }
 }
 
 #[test]
