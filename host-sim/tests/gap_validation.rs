@@ -10,7 +10,7 @@
 //! target/gap-validation.md.
 
 use host_sim::gap::diagnose::Options;
-use host_sim::gap::validation::{cases, publish, run_suite};
+use host_sim::gap::validation::{cases, publish, run_suite, score, suite_logs};
 use host_sim::model::effects::{EffectKind, RATIO_KEYS};
 
 #[test]
@@ -80,5 +80,42 @@ fn gap_validation_suite() {
                 e.map(|e| (e.ratio, e.ci95))
             );
         }
+    }
+}
+
+/// The same suite on logs as the board's console records them: every tenth
+/// row (10 ms). A measurement (`--ignored`, about as long as the suite): it
+/// publishes target/gap-validation-10ms.md and checks only that every case is
+/// diagnosed with finite gaps; docs/gap.md gives its table.
+#[test]
+#[ignore = "measurement; run with --ignored --nocapture"]
+fn gap_validation_suite_at_10_ms() {
+    let out = score(
+        &cases(),
+        |i, c| {
+            let (fit, check) = suite_logs(i, c);
+            (fit.decimate(10), check.decimate(10))
+        },
+        &Options::default(),
+        false,
+    );
+    let s = publish(&out, "gap-validation-10ms.md");
+    println!(
+        "10 ms: single {}/{}, clean {}/{}, pairs {}/{}",
+        s.single.0, s.single.1, s.clean.0, s.clean.1, s.pairs.0, s.pairs.1
+    );
+    // Every case diagnosed with finite gaps (the 10 ms path runs end to
+    // end); the verdicts are what the table reports, not asserted: on the
+    // own suite's check runs the nominal model does not hold at 10 ms yet
+    // (docs/gap.md, "Logs at 10 ms").
+    for o in &out {
+        let (f, c) = (&o.diagnosis.fit, &o.diagnosis.check);
+        assert!(
+            [f.before, f.after, c.before, c.after]
+                .iter()
+                .all(|g| g.is_finite()),
+            "{}: gaps {f:?} {c:?}",
+            o.case.name
+        );
     }
 }

@@ -76,3 +76,47 @@ fn gap_diagnosis_on_foreign_effect_forms() {
         );
     }
 }
+
+/// The foreign logs as the board's console records them: every tenth row
+/// (10 ms). A measurement (`--ignored`): it publishes
+/// target/gap-foreign-10ms.md and checks only that every case is diagnosed
+/// with finite gaps;
+/// docs/gap.md gives its table.
+#[test]
+#[ignore = "measurement; run with --ignored --nocapture"]
+fn gap_diagnosis_on_foreign_effect_forms_at_10_ms() {
+    let foreign = cases();
+    let ours: Vec<Case> = foreign.iter().map(as_case).collect();
+    let out = score(
+        &ours,
+        |i, _| {
+            let f = &foreign[i];
+            let seed = 500 + 2 * i as u64;
+            (
+                read(f, ForeignScenario::Fit, seed).decimate(10),
+                read(f, ForeignScenario::Check, seed + 1).decimate(10),
+            )
+        },
+        &Options::default(),
+        false,
+    );
+    let s = publish(&out, "gap-foreign-10ms.md");
+    println!(
+        "10 ms: single {}/{}, clean {}/{}, pairs {}/{}",
+        s.single.0, s.single.1, s.clean.0, s.clean.1, s.pairs.0, s.pairs.1
+    );
+    // Every case diagnosed with finite gaps (the 10 ms path runs end to
+    // end); the verdicts are what the table reports, not asserted: on the
+    // own suite's check runs the nominal model does not hold at 10 ms yet
+    // (docs/gap.md, "Logs at 10 ms").
+    for o in &out {
+        let (f, c) = (&o.diagnosis.fit, &o.diagnosis.check);
+        assert!(
+            [f.before, f.after, c.before, c.after]
+                .iter()
+                .all(|g| g.is_finite()),
+            "{}: gaps {f:?} {c:?}",
+            o.case.name
+        );
+    }
+}

@@ -263,17 +263,16 @@ impl Outcome {
 
 /// Run the suite (cases in parallel): logs from [`rig_log`], then [`score`].
 pub fn run_suite(cases: &[Case], opts: &Options, progress: bool) -> Vec<Outcome> {
-    score(
-        cases,
-        |i, c| {
-            let seed = 100 + 2 * i as u64;
-            (
-                rig_log(fit_scenario(), ControllerKind::MpcEso, &c.effects, seed),
-                rig_log(check_scenario(), ControllerKind::Pid, &c.effects, seed + 1),
-            )
-        },
-        opts,
-        progress,
+    score(cases, suite_logs, opts, progress)
+}
+
+/// The fit and check logs [`run_suite`] diagnoses for the `i`-th case `c`
+/// (1 ms rows; [`RunLog::decimate`] makes the console's 10 ms ones).
+pub fn suite_logs(i: usize, c: &Case) -> (RunLog, RunLog) {
+    let seed = 100 + 2 * i as u64;
+    (
+        rig_log(fit_scenario(), ControllerKind::MpcEso, &c.effects, seed),
+        rig_log(check_scenario(), ControllerKind::Pid, &c.effects, seed + 1),
     )
 }
 

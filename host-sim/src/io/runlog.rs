@@ -103,6 +103,31 @@ impl RunLog {
         }
     }
 
+    /// Every `n`-th row from the first (`n` >= 1), as the board's console
+    /// records a run at 1/n of its tick rate (docs/interfaces.md section 5);
+    /// metadata and extra columns kept.
+    pub fn decimate(&self, n: usize) -> RunLog {
+        let n = n.max(1);
+        let every = |v: &[f64]| v.iter().step_by(n).copied().collect::<Vec<_>>();
+        RunLog {
+            source: self.source.clone(),
+            meta: self.meta.clone(),
+            t_s: every(&self.t_s),
+            ref_m: every(&self.ref_m),
+            vcmd_mps: every(&self.vcmd_mps),
+            xi_m: every(&self.xi_m),
+            xo_m: every(&self.xo_m),
+            p1_pa: every(&self.p1_pa),
+            p2_pa: every(&self.p2_pa),
+            ft_n: every(&self.ft_n),
+            extra: self
+                .extra
+                .iter()
+                .map(|(k, v)| (k.clone(), every(v)))
+                .collect(),
+        }
+    }
+
     /// A metadata value.
     pub fn meta(&self, key: &str) -> Option<&str> {
         self.meta
@@ -376,6 +401,31 @@ t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n\
         assert_eq!(log.meta("controller"), Some("mpc-eso"));
         assert_eq!(log.vcmd_mps[1], 0.012);
         assert!((log.dt_s() - 0.001).abs() < 1e-12);
+    }
+
+    #[test]
+    fn decimation_keeps_every_nth_row_of_every_column() {
+        let text = "t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n,z1_m\n\
+0.000,0,0,0,0,0,0,0,10\n0.001,1,1,1,1,1,1,1,11\n0.002,2,2,2,2,2,2,2,12\n\
+0.003,3,3,3,3,3,3,3,13\n0.004,4,4,4,4,4,4,4,14\n";
+        let log = RunLog::parse(text, "x.csv").unwrap();
+        let d = log.decimate(2);
+        assert_eq!(d.len(), 3);
+        assert!((d.dt_s() - 0.002).abs() < 1e-12);
+        for col in [
+            &d.ref_m,
+            &d.vcmd_mps,
+            &d.xi_m,
+            &d.xo_m,
+            &d.p1_pa,
+            &d.p2_pa,
+            &d.ft_n,
+        ] {
+            assert_eq!(col, &vec![0.0, 2.0, 4.0]);
+        }
+        assert_eq!(d.channel("z1_m"), Some(&[10.0, 12.0, 14.0][..]));
+        assert_eq!(log.decimate(1), log);
+        assert_eq!(log.decimate(0), log);
     }
 
     #[test]
