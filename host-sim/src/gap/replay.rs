@@ -41,14 +41,32 @@ pub fn replay(log: &RunLog, rig: &Rig, max_dt_s: f64) -> Replay {
 }
 
 /// The recorded load with its sensor noise reduced: a running median over
-/// 11 samples (keeps the steps of the load, removes the noise that would
-/// otherwise drive the replayed pressures).
+/// 10 ms (11 samples at 1 ms; keeps the steps of the load, removes the noise
+/// that would otherwise drive the replayed pressures). On 10 ms rows the
+/// window holds one row: the load is used as recorded.
 pub fn filtered_load(log: &RunLog) -> Vec<f64> {
     let n = log.len();
+    let half = half_window(log.dt_s());
     (0..n)
-        .map(|i| super::stats::median(&log.ft_n[i.saturating_sub(5)..(i + 6).min(n)]))
+        .map(|i| super::stats::median(&log.ft_n[i.saturating_sub(half)..(i + half + 1).min(n)]))
         .collect()
 }
+
+/// Rows either side of the load's running median: 5 ms of the log (five
+/// rows at 1 ms; none at 10 ms, where a median over 110 ms would move the
+/// load a ramp has at the run's start by its rise over 50 ms).
+fn half_window(dt_s: f64) -> usize {
+    if dt_s > 0.0 {
+        // (The relative tolerance keeps 1 ms rows written as 0.0009999...
+        // at five.)
+        (LOAD_MEDIAN_HALF_S / dt_s * (1.0 + 1e-6)).floor() as usize
+    } else {
+        5
+    }
+}
+
+/// Half the span of the load's running median, s.
+const LOAD_MEDIAN_HALF_S: f64 = 0.005;
 
 /// Replay with a given load signal (see [`filtered_load`]).
 pub fn replay_with_load(log: &RunLog, load: &[f64], rig: &Rig, max_dt_s: f64) -> Replay {
@@ -138,5 +156,44 @@ pub fn replay_visit(
             rig.step(&mut s, vcmd, ft, h);
         }
         diverged = !s.is_finite();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_load_median_spans_five_ms_either_side() {
+        for (dt, half) in [
+            (0.001, 5),
+            (0.000_999_999_9, 5),
+            (0.001_000_000_1, 5),
+            (0.002, 2),
+            (0.005, 1),
+            (0.01, 0),
+        ] {
+            assert_eq!(half_window(dt), half, "dt {dt}");
+        }
+    }
+
+    #[test]
+    fn a_ramp_on_10_ms_rows_is_used_as_recorded() {
+        // A load ramping from the first row: a median over 110 ms would
+        // start it at its value 50 ms later.
+        let mut text = String::from("t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n");
+        for k in 0..20 {
+            text += &format!("{:.3},0,0,0,0,0,0,{}\n", k as f64 * 0.01, 300 + 6 * k);
+        }
+        let log = RunLog::parse(&text, "ramp.csv").unwrap();
+        assert_eq!(filtered_load(&log), log.ft_n);
+        // On 1 ms rows the median still removes spikes (one row in four).
+        let mut text = String::from("t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n");
+        for k in 0..40 {
+            let spike = if k % 4 == 1 { 40.0 } else { 0.0 };
+            text += &format!("{:.3},0,0,0,0,0,0,{}\n", k as f64 * 0.001, 300.0 + spike);
+        }
+        let log = RunLog::parse(&text, "spiky.csv").unwrap();
+        assert!(filtered_load(&log).iter().all(|&v| v == 300.0));
     }
 }
