@@ -53,8 +53,8 @@ pub fn filtered_load(log: &RunLog) -> Vec<f64> {
 }
 
 /// Rows either side of the load's running median: 5 ms of the log (five
-/// rows at 1 ms; none at 10 ms, where a median over 110 ms would move the
-/// load a ramp has at the run's start by its rise over 50 ms).
+/// rows at 1 ms; none at 10 ms, where a median over 11 rows would start a
+/// run under a rising load from the median of its first 60 ms).
 fn half_window(dt_s: f64) -> usize {
     if dt_s > 0.0 {
         // (The relative tolerance keeps 1 ms rows written as 0.0009999...
@@ -179,8 +179,8 @@ mod tests {
 
     #[test]
     fn a_ramp_on_10_ms_rows_is_used_as_recorded() {
-        // A load ramping from the first row: a median over 110 ms would
-        // start it at its value 50 ms later.
+        // A load ramping from the first row: a median over 11 rows would
+        // start it at the median of its first six (60 ms).
         let mut text = String::from("t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n");
         for k in 0..20 {
             text += &format!("{:.3},0,0,0,0,0,0,{}\n", k as f64 * 0.01, 300 + 6 * k);
