@@ -201,9 +201,9 @@ pub struct CmpcGains {
 
 /// How far ahead the reference preview extrapolates the reference from its
 /// rate and curvature, s; beyond it the previewed reference holds. (A rate
-/// and a curvature describe a trajectory for a fraction of its period only:
-/// extrapolated over a whole 1 s horizon, a 1 Hz sine's preview is wrong by
-/// more than its amplitude.)
+/// and a curvature describe a trajectory for a short stretch only:
+/// extrapolated over the whole 1 s horizon of `limit`, they put the `sine`
+/// scenario's RMSE at 6.9 mm; docs/control.md has the scan.)
 pub const PREVIEW_HORIZON_S: f64 = 0.05;
 
 /// Time constant of the compliance feedforward's low-pass on the load, s.
