@@ -341,6 +341,15 @@ impl Outcome {
     pub fn check_excited(&self) -> bool {
         self.diagnosis.check.before >= NONE_GAP
     }
+
+    /// Every gap of the diagnosis (fit and check, before and after) is
+    /// finite: the replay and the search ran end to end.
+    pub fn gaps_finite(&self) -> bool {
+        let (f, c) = (&self.diagnosis.fit, &self.diagnosis.check);
+        [f.before, f.after, c.before, c.after]
+            .iter()
+            .all(|g| g.is_finite())
+    }
 }
 
 /// Score the outcomes.
