@@ -15,9 +15,10 @@ use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
 use super::progress::Progress;
 use super::run::Run;
-use super::{calibrate, grey_box, lsq, prefit};
+use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
-    EffectKind, Effects, HysteresisSpectrum, ENVELOPE_SPEEDS_MPS, SPECTRUM_YIELDS_PA,
+    EffectKind, Effects, FrictionMap, HysteresisSpectrum, LeakageMap, ENVELOPE_SPEEDS_MPS,
+    FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, LEAK_DP_PA, SPECTRUM_YIELDS_PA,
 };
 use crate::model::plant::Plant;
 
@@ -218,13 +219,16 @@ impl Fitter<'_> {
                 };
                 (effects, gap(self.fit, self.base, &effects, self.dt_s))
             }
-            EffectKind::HoseHysteresis => {
-                let (spectrum, gap_fit) = self.fit_spectrum(before_fit)?;
-                let effects = Effects {
-                    hose_spectrum: Some(spectrum),
-                    ..Effects::NONE
-                };
-                (effects, gap_fit)
+            EffectKind::HoseHysteresis => self.fit_spectrum(before_fit)?,
+            EffectKind::Friction => self.fit_friction_map(before_fit)?,
+            EffectKind::Leakage => self.fit_leakage_map(before_fit)?,
+            EffectKind::SensorDelay => {
+                let f = sensor_family::fit_filter(self.fit, self.base, self.dt_s, before_fit)?;
+                (f.effects, f.gap)
+            }
+            EffectKind::SensorCalibration => {
+                let f = sensor_family::fit_map(self.fit, self.base, self.dt_s, before_fit)?;
+                (f.effects, f.gap)
             }
             _ => return None,
         };
@@ -236,34 +240,73 @@ impl Fitter<'_> {
         Some((fit, gap(self.check, self.base, &effects, self.dt_s)))
     }
 
-    /// The hose wall's general family: the compliances of the hysteresis
-    /// spectrum ([`HysteresisSpectrum`]) by least squares on the fit runs'
-    /// block-mean residuals (Levenberg-Marquardt, non-negative, in units of
-    /// 1e-13 m^3/Pa, from zero: the nominal wall), with the gap there;
-    /// `None` when the plant cannot take it (an implicit GRNN hose) or it
-    /// does not lower the fit runs' nominal gap `before_fit`.
-    fn fit_spectrum(&self, before_fit: f64) -> Option<(HysteresisSpectrum, f64)> {
-        const UNIT: f64 = 1e-13;
-        const N: usize = SPECTRUM_YIELDS_PA.len();
-        let make = |x: &[f64]| HysteresisSpectrum {
-            c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
-        };
-        let with = |x: &[f64]| Effects {
-            hose_spectrum: Some(make(x)),
-            ..Effects::NONE
-        };
+    /// A learned general family by least squares on the fit runs'
+    /// block-mean residuals: `n` non-negative values in units of their own
+    /// scale (`with` builds the effect from them), Levenberg-Marquardt from
+    /// zero (the nominal model), at most [`LEARNED_ITERS`] Jacobians; the
+    /// values with the gap there. `None` when the plant cannot take the
+    /// effect (an implicit GRNN hose) or it does not lower the fit runs'
+    /// nominal gap `before_fit`.
+    fn fit_learned(
+        &self,
+        n: usize,
+        with: &(dyn Fn(&[f64]) -> Effects + Sync),
+        before_fit: f64,
+    ) -> Option<(Effects, f64)> {
         let f = |x: &[f64]| lsq::residuals(self.fit, self.base, &with(x), self.dt_s);
         let r = lsq::levenberg_marquardt(
             &f,
-            &[0.0; N],
+            &vec![0.0; n],
             None,
-            &[0.1; N],
-            &[0.0; N],
-            &[50.0; N],
-            SPECTRUM_ITERS,
+            &vec![0.1; n],
+            &vec![0.0; n],
+            &vec![50.0; n],
+            LEARNED_ITERS,
         )?;
-        let g = gap(self.fit, self.base, &with(&r.x), self.dt_s);
-        (g < before_fit).then(|| (make(&r.x), g))
+        let e = with(&r.x);
+        let g = gap(self.fit, self.base, &e, self.dt_s);
+        (g < before_fit).then_some((e, g))
+    }
+
+    /// The hose wall's general family: the compliances of the hysteresis
+    /// spectrum ([`HysteresisSpectrum`]) in units of 1e-13 m^3/Pa.
+    fn fit_spectrum(&self, before_fit: f64) -> Option<(Effects, f64)> {
+        const UNIT: f64 = 1e-13;
+        let with = |x: &[f64]| Effects {
+            hose_spectrum: Some(HysteresisSpectrum {
+                c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
+            }),
+            ..Effects::NONE
+        };
+        self.fit_learned(SPECTRUM_YIELDS_PA.len(), &with, before_fit)
+    }
+
+    /// The seals' friction in its general family ([`FrictionMap`]): the
+    /// friction at the speed knots and per MPa, in units of 10 N.
+    fn fit_friction_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
+        const UNIT_N: f64 = 10.0;
+        let with = |x: &[f64]| Effects {
+            friction_map: Some(FrictionMap {
+                force_n: std::array::from_fn(|i| x[i].max(0.0) * UNIT_N),
+                n_per_mpa: x[6].max(0.0) * UNIT_N,
+            }),
+            ..Effects::NONE
+        };
+        self.fit_learned(7, &with, before_fit)
+    }
+
+    /// The seals' leakage in its general family ([`LeakageMap`]): the flow
+    /// at the knots in units of 1e-7 m^3/s (1e-13 m^3/(s Pa) at 1 MPa) and
+    /// the level conductance in units of 1e-13 m^3/(s Pa).
+    fn fit_leakage_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
+        let with = |x: &[f64]| Effects {
+            leakage_map: Some(LeakageMap {
+                q_m3ps: std::array::from_fn(|i| x[i].max(0.0) * 1e-7),
+                g_m3pspa: x[5].max(0.0) * 1e-13,
+            }),
+            ..Effects::NONE
+        };
+        self.fit_learned(6, &with, before_fit)
     }
 
     /// Fit one candidate on the fit runs: its effects and gap, the form that
@@ -345,6 +388,10 @@ impl Fitter<'_> {
         let general = |k: &EffectKind| match k {
             EffectKind::MotorLimit => start.effects.servo_envelope.is_some(),
             EffectKind::HoseHysteresis => start.effects.hose_spectrum.is_some(),
+            EffectKind::Friction => start.effects.friction_map.is_some(),
+            EffectKind::Leakage => start.effects.leakage_map.is_some(),
+            EffectKind::SensorDelay => start.effects.sensor_filter.is_some(),
+            EffectKind::SensorCalibration => start.effects.sensor_map.is_some(),
             _ => false,
         };
         let free: Vec<EffectKind> = [first, second]
@@ -363,8 +410,8 @@ impl Fitter<'_> {
     }
 }
 
-/// Jacobians of the hysteresis spectrum's least-squares fit.
-const SPECTRUM_ITERS: usize = 6;
+/// Jacobians of a learned general family's least-squares fit.
+const LEARNED_ITERS: usize = 6;
 
 /// Points of the coarse grid of a one-effect fit: 9 for one parameter, 5 x 5
 /// for two, 3 x 3 x 3 for three.
@@ -389,13 +436,16 @@ pub fn estimate_params(est: &[Estimate]) -> BTreeMap<String, f64> {
 }
 
 /// Whether to fit `kind`'s general family after its named form shrank the
-/// fit runs' gap by `named_fit_shrink`: the hose wall's spectrum (a costly
-/// least-squares fit of five compliances) only where the named form shows
-/// the wall's hysteresis at least in part (10 %); the servo's envelope
-/// gates itself on the encoder's gap ([`prefit::servo_envelope`]).
+/// fit runs' gap by `named_fit_shrink`: the learned families of the hose
+/// wall and the seals (least-squares fits of five to seven values, some
+/// 60 replays) only where the named form shows the effect at least in part
+/// (10 %); the servo's envelope gates itself on the encoder's gap
+/// ([`prefit::servo_envelope`]); the sensors' families cost one replay.
 fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
     match kind {
-        EffectKind::HoseHysteresis => named_fit_shrink >= 0.1,
+        EffectKind::HoseHysteresis | EffectKind::Friction | EffectKind::Leakage => {
+            named_fit_shrink >= 0.1
+        }
         _ => true,
     }
 }
@@ -409,6 +459,18 @@ fn general_form(kind: EffectKind) -> &'static str {
         EffectKind::HoseHysteresis => {
             "general: a Prandtl-Ishlinskii spectrum of the hose wall (five yields, 10 kPa to 1 MPa)"
         }
+        EffectKind::Friction => {
+            "general: seal friction of any shape over speed, plus a share growing with the line pressures"
+        }
+        EffectKind::Leakage => {
+            "general: internal leakage of any shape over the pressure difference, plus a share growing with the pressure level"
+        }
+        EffectKind::SensorDelay => {
+            "general: a sensor's lag of any shape (a non-negative impulse response over 0 to 32 ms)"
+        }
+        EffectKind::SensorCalibration => {
+            "general: a sensor's monotone static map of any shape (piecewise linear, six knots)"
+        }
         _ => "general",
     }
 }
@@ -417,7 +479,14 @@ fn general_form(kind: EffectKind) -> &'static str {
 /// offset carries its channel's unit: `offset_m`, `offset_pa`, `offset_n`;
 /// for `motor_limit` in its general family the mass and the available force
 /// at each knot, `force_n_at_<speed>_mps`; for `hose_hysteresis` in its
-/// general family each element's compliance, `c_m3pp_at_yield_<yield>_pa`).
+/// general family each element's compliance, `c_m3pp_at_yield_<yield>_pa`;
+/// for `friction` and `leakage` in their general families the learned
+/// values at each knot, `force_n_at_<speed>_mmps` and `q_m3ps_at_<dp>_mpa`,
+/// and the pressure terms `n_per_mpa`, `g_m3pspa`;
+/// for `sensor_delay` in its general family the channel, the mean delay and
+/// each tap's weight, `weight_at_<delay>_ms`; for `sensor_calibration` in
+/// its general family the channel and the map's knots and readings,
+/// `knot<i>_<unit>`, `reading<i>_<unit>`).
 pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
     if let (EffectKind::HoseHysteresis, Some(h)) = (kind, e.hose_spectrum) {
         return SPECTRUM_YIELDS_PA
@@ -430,6 +499,39 @@ pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
         let mut m = BTreeMap::from([("mass_eq_kg".to_string(), s.mass_eq_kg)]);
         for (v, f) in ENVELOPE_SPEEDS_MPS.iter().zip(s.force_n) {
             m.insert(format!("force_n_at_{v:.2}_mps"), f);
+        }
+        return m;
+    }
+    if let (EffectKind::Friction, Some(f)) = (kind, e.friction_map) {
+        let mut m = BTreeMap::from([("n_per_mpa".to_string(), f.n_per_mpa)]);
+        for (v, x) in FRICTION_SPEEDS_MPS.iter().zip(f.force_n) {
+            m.insert(format!("force_n_at_{:.1}_mmps", v * 1e3), x);
+        }
+        return m;
+    }
+    if let (EffectKind::Leakage, Some(l)) = (kind, e.leakage_map) {
+        let mut m = BTreeMap::from([("g_m3pspa".to_string(), l.g_m3pspa)]);
+        for (dp, q) in LEAK_DP_PA[1..].iter().zip(l.q_m3ps) {
+            m.insert(format!("q_m3ps_at_{:.2}_mpa", dp * 1e-6), q);
+        }
+        return m;
+    }
+    if let (EffectKind::SensorDelay, Some(f)) = (kind, e.sensor_filter) {
+        let mut m = BTreeMap::from([
+            ("channel".to_string(), f.channel.index() as f64),
+            ("mean_delay_s".to_string(), f.mean_delay_s()),
+        ]);
+        for (d, w) in FILTER_DELAYS_S.iter().zip(f.normalised()) {
+            m.insert(format!("weight_at_{:.0}_ms", d * 1e3), w);
+        }
+        return m;
+    }
+    if let (EffectKind::SensorCalibration, Some(s)) = (kind, e.sensor_map) {
+        let mut m = BTreeMap::from([("channel".to_string(), s.channel.index() as f64)]);
+        let unit = s.channel.unit();
+        for (i, (k, r)) in s.knots_si.iter().zip(s.readings_si).enumerate() {
+            m.insert(format!("knot{i}_{unit}"), *k);
+            m.insert(format!("reading{i}_{unit}"), r);
         }
         return m;
     }

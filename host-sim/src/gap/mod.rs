@@ -46,7 +46,10 @@ pub mod replay;
 pub mod report;
 pub mod run;
 pub mod segment;
+pub mod sensor_family;
 pub mod stats;
+#[cfg(test)]
+pub(crate) mod testing;
 pub mod validation;
 
 use std::path::{Path, PathBuf};

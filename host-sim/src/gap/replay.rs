@@ -8,11 +8,11 @@
 //! controller ticks, which fall on the log grid). The model starts at rest at
 //! the first encoder count and the measured position and load averaged over
 //! the first 20 ms while the encoder has not moved. The outputs are what ideal sensors
-//! (with the candidate `sensor_delay`, if any) would have reported at the log
-//! instants, for the channels the gap compares. Under a candidate
-//! `sensor_calibration` the replay reads through its map, and starts from
-//! (and, for the force sensor, is driven by) the true values its inverse
-//! gives of the recorded ones.
+//! (with the candidate `sensor_delay`, if any, named or in its general family)
+//! would have reported at the log instants, for the channels the gap compares.
+//! Under a candidate `sensor_calibration` (named or general) the replay reads
+//! through its map, and starts from (and, for the force sensor, is driven by)
+//! the true values its inverse gives of the recorded ones.
 
 use crate::io::runlog::RunLog;
 use crate::model::effects::CalChannel;
@@ -115,23 +115,18 @@ pub fn replay_visit(
         .max(1);
     let start = |v: &[f64]| super::stats::mean(&v[..still.min(v.len())]);
     let (mut ft0, mut xi0, mut xo0) = (start(load), xi0, start(&log.xo_m));
-    let cal = rig.effects().sensor_calibration;
+    let (cal, map) = (rig.effects().sensor_calibration, rig.effects().sensor_map);
     // The true value of a recorded one on the calibrated channel.
-    let truth = |ch: CalChannel, v: f64| match cal {
-        Some(c) if c.channel == ch => c.invert(v),
+    let truth = |ch: CalChannel, v: f64| match (cal, map) {
+        (Some(c), _) if c.channel == ch => c.invert(v),
+        (_, Some(m)) if m.channel == ch => m.invert(v),
         _ => v,
     };
     ft0 = truth(CalChannel::Ft, ft0);
     xi0 = truth(CalChannel::Xi, xi0);
     xo0 = truth(CalChannel::Xo, xo0);
     let mut s = rig.rest_state(ft0, xi0, xo0);
-    let mut sensors = Sensors::new(SensorMode::Ideal, 0);
-    if let Some(d) = &rig.effects().sensor_delay {
-        sensors = sensors.with_delay(d, log_dt);
-    }
-    if let Some(c) = &cal {
-        sensors = sensors.with_calibration(c);
-    }
+    let mut sensors = Sensors::new(SensorMode::Ideal, 0).with_effects(rig.effects(), log_dt);
     let mut diverged = false;
     for (k, (&ft, &vcmd)) in load.iter().zip(&log.vcmd_mps).enumerate() {
         let ft = truth(CalChannel::Ft, ft);

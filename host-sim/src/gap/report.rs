@@ -10,7 +10,9 @@ use super::run::Run;
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
 use crate::model::effects::{
-    self, HysteresisSpectrum, ServoEnvelope, ENVELOPE_SPEEDS_MPS, SPECTRUM_YIELDS_PA,
+    self, CalChannel, FrictionMap, HysteresisSpectrum, LeakageMap, SensorFilter, SensorMap,
+    ServoEnvelope, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, LEAK_DP_PA,
+    SPECTRUM_YIELDS_PA,
 };
 
 /// Why the report could not be written.
@@ -165,6 +167,129 @@ fn spectrum_figure(path: &Path, h: &HysteresisSpectrum) -> Result<(), PlotError>
     plot::save(path, &[panel], 900, 420)
 }
 
+/// Display units of a channel's values and of its small deviations, with
+/// their scales from SI: mm and um for the positions, MPa and kPa for the
+/// pressures.
+fn display_units(ch: CalChannel) -> ((&'static str, f64), (&'static str, f64)) {
+    match ch {
+        CalChannel::Xo | CalChannel::Xi => (("mm", 1e3), ("um", 1e6)),
+        CalChannel::P1 | CalChannel::P2 => (("MPa", 1e-6), ("kPa", 1e-3)),
+        CalChannel::Ft => (("N", 1.0), ("N", 1.0)),
+    }
+}
+
+/// The learned sensor filter: its step response (the share of a step the
+/// channel reports after each delay) and its impulse weights.
+fn filter_figure(path: &Path, f: &SensorFilter) -> Result<(), PlotError> {
+    let w = f.normalised();
+    let mut acc = 0.0;
+    let mut step = vec![(0.0, 0.0)];
+    for (d, wi) in FILTER_DELAYS_S.iter().zip(w) {
+        step.push((d * 1e3, acc));
+        acc += wi;
+        step.push((d * 1e3, acc));
+    }
+    step.push((FILTER_DELAYS_S[FILTER_DELAYS_S.len() - 1] * 1e3 + 4.0, acc));
+    let taps = FILTER_DELAYS_S
+        .iter()
+        .zip(w)
+        .map(|(d, wi)| (d * 1e3, wi))
+        .collect();
+    let panel = Panel::new(
+        format!(
+            "sensor_delay, general family: the learned lag of {} (mean delay {:.2} ms)",
+            f.channel.name(),
+            f.mean_delay_s() * 1e3
+        ),
+        "time after a step of the true value [ms]",
+        "share of the step reported",
+    )
+    .with(Series::line("step response", step))
+    .with(Series::points("tap weights", taps));
+    plot::save(path, &[panel], 900, 420)
+}
+
+/// The learned sensor map as its deviation from the identity over the true
+/// value, with the fit runs' recorded-minus-replayed points behind it.
+fn map_figure(path: &Path, m: &SensorMap, details: &Details) -> Result<(), PlotError> {
+    let c = m.channel.index();
+    let ((vu, vk), (du, dk)) = display_units(m.channel);
+    let (lo, hi) = (m.knots_si[0], m.knots_si[m.knots_si.len() - 1]);
+    let curve = (0..=200)
+        .map(|i| {
+            let v = lo + (hi - lo) * i as f64 / 200.0;
+            (v * vk, (m.map(v) - v) * dk)
+        })
+        .collect();
+    let mut points = Vec::new();
+    for (run, sim) in details.fit.iter().zip(&details.before) {
+        let y = measured(&run.log)[c];
+        for (k, v) in sim.ch[c].iter().enumerate().step_by(BLOCK) {
+            if v.is_finite() && y[k].is_finite() {
+                points.push((v * vk, (y[k] - v) * dk));
+            }
+        }
+    }
+    let panel = Panel::new(
+        format!(
+            "sensor_calibration, general family: the learned map of {}",
+            m.channel.name()
+        ),
+        format!("true value [{vu}]"),
+        format!("recorded minus true [{du}]"),
+    )
+    .with(Series::points(
+        "fit runs: recorded minus the nominal replay",
+        points,
+    ))
+    .with(Series::line("learned map minus identity", curve));
+    plot::save(path, &[panel], 900, 420)
+}
+
+/// The learned seal friction: its magnitude over speed with P1 + P2 at 0,
+/// 2 and 5 MPa.
+fn friction_figure(path: &Path, f: &FrictionMap) -> Result<(), PlotError> {
+    let mut panel = Panel::new(
+        "friction, general family: the seals' learned friction over the piston speed",
+        "speed of the actuating piston [mm/s]",
+        "friction force [N]",
+    );
+    for p_mpa in [0.0, 2.0, 5.0] {
+        let curve = (0..=400)
+            .map(|i| {
+                let v = 0.12 * i as f64 / 400.0;
+                (v * 1e3, f.magnitude_n(v, p_mpa * 1e6, 0.0))
+            })
+            .collect();
+        panel = panel.with(Series::line(format!("P1 + P2 = {p_mpa} MPa"), curve));
+    }
+    plot::save(path, &[panel], 900, 420)
+}
+
+/// The learned internal leakage: the flow over the pressure difference
+/// with the mean line pressure at 1 and 3 MPa.
+fn leakage_figure(path: &Path, l: &LeakageMap) -> Result<(), PlotError> {
+    let mut panel = Panel::new(
+        "leakage, general family: the seals' learned leakage over the pressure difference",
+        "P1 - P2 [MPa]",
+        "leakage flow from line 1 to line 2 [cm^3/s]",
+    );
+    for mean_mpa in [1.0, 3.0] {
+        let curve = (0..=200)
+            .map(|i| {
+                let dp = -5e6 + 10e6 * i as f64 / 200.0;
+                let p2 = mean_mpa * 1e6 - 0.5 * dp;
+                (dp * 1e-6, l.flow(p2 + dp, p2) * 1e6)
+            })
+            .collect();
+        panel = panel.with(Series::line(
+            format!("mean line pressure {mean_mpa} MPa"),
+            curve,
+        ));
+    }
+    plot::save(path, &[panel], 900, 420)
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -239,6 +364,75 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             "---|".repeat(ENVELOPE_SPEEDS_MPS.len()),
             s.force_n.map(|f| format!("{f:.0}")).join(" | "),
             s.mass_eq_kg
+        );
+    }
+    if let Some(f) = &details.effects.friction_map {
+        friction_figure(&dir.join("friction_map.png"), f)?;
+        let _ = writeln!(
+            md,
+            "## The seals' learned friction\n\n\
+             | speed [mm/s] | {} |\n|---|{}\n| friction at P1 + P2 = 0 [N] | {} |\n\n\
+             Plus {:.1} N per MPa of P1 + P2. Flat beyond the last knot.\n\n\
+             ![friction map](friction_map.png)\n",
+            FRICTION_SPEEDS_MPS
+                .map(|v| format!("{:.1}", v * 1e3))
+                .join(" | "),
+            "---|".repeat(FRICTION_SPEEDS_MPS.len()),
+            f.force_n.map(|x| format!("{x:.1}")).join(" | "),
+            f.n_per_mpa
+        );
+    }
+    if let Some(l) = &details.effects.leakage_map {
+        leakage_figure(&dir.join("leakage_map.png"), l)?;
+        let _ = writeln!(
+            md,
+            "## The seals' learned leakage\n\n\
+             | abs(P1 - P2) [MPa] | {} |\n|---|{}\n| flow [cm^3/s] | {} |\n\n\
+             Plus {:.3e} m^3/(s Pa) times dP per MPa of mean line pressure. Linear beyond \
+             the last knot.\n\n![leakage map](leakage_map.png)\n",
+            LEAK_DP_PA[1..]
+                .iter()
+                .map(|p| format!("{:.2}", p * 1e-6))
+                .collect::<Vec<_>>()
+                .join(" | "),
+            "---|".repeat(LEAK_DP_PA.len() - 1),
+            l.q_m3ps.map(|q| format!("{:.3}", q * 1e6)).join(" | "),
+            l.g_m3pspa
+        );
+    }
+    if let Some(f) = &details.effects.sensor_filter {
+        filter_figure(&dir.join("sensor_filter.png"), f)?;
+        let _ = writeln!(
+            md,
+            "## The learned lag of `{}`\n\n\
+             | delay [ms] | {} |\n|---|{}\n| weight | {} |\n\n\
+             Mean delay {:.2} ms.\n\n![sensor filter](sensor_filter.png)\n",
+            f.channel.name(),
+            FILTER_DELAYS_S
+                .map(|d| format!("{:.0}", d * 1e3))
+                .join(" | "),
+            "---|".repeat(FILTER_DELAYS_S.len()),
+            f.normalised().map(|w| format!("{w:.3}")).join(" | "),
+            f.mean_delay_s() * 1e3
+        );
+    }
+    if let Some(m) = &details.effects.sensor_map {
+        map_figure(&dir.join("sensor_map.png"), m, details)?;
+        let ((vu, vk), (du, dk)) = display_units(m.channel);
+        let _ = writeln!(
+            md,
+            "## The learned map of `{}`\n\n\
+             | true value [{vu}] | {} |\n|---|{}\n| recorded minus true [{du}] | {} |\n\n\
+             Linear beyond the end knots.\n\n![sensor map](sensor_map.png)\n",
+            m.channel.name(),
+            m.knots_si.map(|k| format!("{:.3}", k * vk)).join(" | "),
+            "---|".repeat(m.knots_si.len()),
+            m.knots_si
+                .iter()
+                .zip(m.readings_si)
+                .map(|(k, r)| format!("{:.1}", (r - k) * dk))
+                .collect::<Vec<_>>()
+                .join(" | "),
         );
     }
     if !d.parameters.is_empty() {

@@ -24,7 +24,10 @@ use super::diagnosis::{Diagnosis, Verdict};
 use super::policy::NONE_GAP;
 use super::run::Run;
 use crate::io::runlog::RunLog;
-use crate::model::effects::{EffectKind, Effects, HysteresisSpectrum, ServoEnvelope};
+use crate::model::effects::{
+    CalChannel, EffectKind, Effects, HysteresisSpectrum, LeakageMap, SensorFilter, SensorMap,
+    ServoEnvelope,
+};
 use crate::model::plant::Plant;
 use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
 use crate::model::sensors::SensorMode;
@@ -55,9 +58,11 @@ fn case(name: &str, list: &[(EffectKind, &[f64])]) -> Case {
 
 /// The cases: clean runs, every effect of the catalogue small and large,
 /// three pairs, four rigs whose nominal parameters are off (`parameters`),
-/// five sensors off their calibration (`sensor_calibration`), and two
+/// five sensors off their calibration (`sensor_calibration`), and five
 /// effects in shapes their named forms cannot take (a servo force falling
-/// with speed, a hose wall with two hysteresis scales).
+/// with speed, a hose wall with two hysteresis scales, a seal lip that
+/// leaks only above 1 MPa, an encoder read through a moving average, an
+/// LVDT with a wavy linearity error).
 pub fn cases() -> Vec<Case> {
     use EffectKind::*;
     vec![
@@ -142,6 +147,46 @@ pub fn cases() -> Vec<Case> {
             effects: Effects {
                 hose_spectrum: Some(HysteresisSpectrum {
                     c_m3pp: [1.5e-13, 0.0, 0.0, 0.0, 3e-13],
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            // A seal lip that opens above 1 MPa: no leakage below, then a
+            // steep rise (the named form's power law cannot bend so).
+            name: "leakage (seal lip opening above 1 MPa)".into(),
+            truth: vec![Leakage],
+            effects: Effects {
+                leakage_map: Some(LeakageMap {
+                    q_m3ps: [0.0, 0.0, 0.0, 1.5e-7, 6e-7],
+                    g_m3pspa: 0.0,
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            // The board averages the encoder over 5 ms (taps 0 to 4 ms):
+            // the named form filters only the LVDT and the pressures.
+            name: "sensor_delay (encoder, 5 ms moving average)".into(),
+            truth: vec![SensorDelay],
+            effects: Effects {
+                sensor_filter: Some(SensorFilter {
+                    channel: CalChannel::Xi,
+                    weights: [1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            // A wavy linearity error, +0.2 mm at 15 mm and -0.2 mm at 35 mm
+            // (odd about mid-stroke: no quadratic takes it).
+            name: "sensor_calibration (LVDT wavy, +-0.2 mm)".into(),
+            truth: vec![SensorCalibration],
+            effects: Effects {
+                sensor_map: Some(SensorMap {
+                    channel: CalChannel::Xo,
+                    knots_si: [-0.010, 0.005, 0.015, 0.025, 0.035, 0.045],
+                    readings_si: [-0.010, 0.005, 0.0152, 0.025, 0.0348, 0.045],
                 }),
                 ..Effects::NONE
             },

@@ -9,6 +9,8 @@
 //! |---|---|---|
 //! | `leakage` | internal leakage line 1 -> line 2 across the pistons, Q = G dP ((abs(dP) + 10 kPa) / 1 MPa)^(n - 1), dP = P1 - P2: laminar (n = 1) to orifice-like (n = 0.5) | `g_m3pspa` (conductance at 1 MPa, typ. 1e-13: 0.2 cm^3/s at 2 MPa), `exponent` (typ. 1) |
 //! | `friction` | seal friction on the actuating piston, Coulomb + Stribeck, smoothed: F = (Fc + (Fs - Fc) exp(-(v/vs)^2)) tanh(v/v_eps) | `coulomb_n` (typ. 30), `static_n` (typ. 45), `stribeck_mps` (typ. 2e-3); v_eps = 1e-4 m/s |
+//! | `leakage`, general family ([`LeakageMap`]) | internal leakage of any shape: Q = sign(dP) L(abs(dP)) + g dP (P1 + P2) / (2 MPa), L piecewise linear over 0 ... 4 MPa ([`LEAK_DP_PA`]), extended linearly | `q_m3ps` (L at the knots), `g_m3pspa` (learned) |
+//! | `friction`, general family ([`FrictionMap`]) | seal friction of any shape: magnitude S(abs(v)) + k (P1 + P2) / 1 MPa against the velocity, S piecewise linear over 0 ... 0.1 m/s ([`FRICTION_SPEEDS_MPS`]) | `force_n` (S at the knots), `n_per_mpa` (learned) |
 //! | `backlash` | play and axial compliance between the motor (encoder, Xi) and the power piston, which carries the hydraulic force F = AP1 P1 - AP2 P2: Xp = Xi - (play/2) tanh(F / 10 N) - F / k (a massless piston: it crosses the play where F changes sign and floats in it while F is near 0) | `play_m` (typ. 50e-6), `stiffness_npm` (typ. 2e7) |
 //! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
@@ -17,6 +19,8 @@
 //! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa, no stuck share), each adding its compliance as far as it is engaged | `c_m3pp` (five compliances, learned) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
+//! | `sensor_delay`, general family ([`SensorFilter`]) | a lag of any shape on one of Xo, Xi, P1, P2: a non-negative impulse response over the delays [`FILTER_DELAYS_S`] (0 ... 32 ms), unit gain at rest | `channel`, `weights` (learned) |
+//! | `sensor_calibration`, general family ([`SensorMap`]) | a monotone static map of any shape on one of Xo, Xi, P1, P2: piecewise linear through six knots, extended linearly | `channel`, `knots_si`, `readings_si` (learned) |
 //! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
 //! | `parameters` | the rig's nominal parameters off by ratios ([`ParameterRatios`]): the plant is built with them ([`ParameterRatios::apply`]) | `m_kg_ratio`, `beta_e_pa_ratio`, `hose_c_ratio` (the hose wall's three compliances), `c_visc_ratio`, `tau_m_ratio`, `p_acc0_ratio`, `aa_ratio` (both actuating-piston areas); all typ. 1 |
 //!
@@ -363,6 +367,210 @@ impl SensorCalibration {
     }
 }
 
+/// Speeds of the knots of a [`FrictionMap`], m/s: dense where Stribeck
+/// curves bend, up to the servo's 0.1 m/s times the area ratio.
+pub const FRICTION_SPEEDS_MPS: [f64; 6] = [0.0, 0.5e-3, 2e-3, 8e-3, 30e-3, 100e-3];
+
+/// Pressure that scales the pressure-dependent parts of the seal maps, Pa.
+pub const SEAL_P_REF_PA: f64 = 1e6;
+
+/// Linear interpolation of `ys` over the knots `xs` (increasing) at
+/// `x >= xs[0]`: flat beyond the last knot when `flat`, else extended
+/// along the last segment.
+fn interp(xs: &[f64], ys: &[f64], x: f64, flat: bool) -> f64 {
+    let last = xs.len() - 1;
+    if x >= xs[last] && flat {
+        return ys[last];
+    }
+    let i = xs[1..last].iter().take_while(|k| x > **k).count();
+    let w = (x - xs[i]) / (xs[i + 1] - xs[i]);
+    ys[i] + w * (ys[i + 1] - ys[i])
+}
+
+/// The general family of `friction` (seal friction of any shape over speed
+/// and pressure): the friction on the actuating piston has the magnitude
+/// `S(abs(v)) + k (P1 + P2) / 1 MPa`, `S` piecewise linear between the
+/// knots [`FRICTION_SPEEDS_MPS`] (flat beyond), and opposes the velocity
+/// (smoothed as the named form is, over 0.1 mm/s). A falling `S` is a
+/// Stribeck curve, a rising one adds viscous-like drag, `k` is the load
+/// of seals that the line pressures press against the rod and bore.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionMap {
+    /// Friction at the knot speeds with both lines at 0 Pa, N (non-negative).
+    pub force_n: [f64; 6],
+    /// Friction added per MPa of P1 + P2, N/MPa (non-negative).
+    #[serde(default)]
+    pub n_per_mpa: f64,
+}
+
+impl FrictionMap {
+    /// The friction's magnitude at the speed `v_mps` (its magnitude) and
+    /// the line pressures, N.
+    pub fn magnitude_n(&self, v_mps: f64, p1_pa: f64, p2_pa: f64) -> f64 {
+        let s = interp(&FRICTION_SPEEDS_MPS, &self.force_n, v_mps.abs(), true);
+        let p = ((p1_pa + p2_pa) / SEAL_P_REF_PA).max(0.0);
+        s + self.n_per_mpa * p
+    }
+
+    /// The friction force on the actuating piston (sign of -v), N.
+    pub fn force(&self, v_mps: f64, p1_pa: f64, p2_pa: f64) -> f64 {
+        -self.magnitude_n(v_mps, p1_pa, p2_pa) * libm::tanh(v_mps / FRICTION_SMOOTH_MPS)
+    }
+
+    /// Whether the map is usable: every value finite and non-negative.
+    pub fn is_valid(&self) -> bool {
+        self.force_n
+            .iter()
+            .chain([&self.n_per_mpa])
+            .all(|f| f.is_finite() && *f >= 0.0)
+    }
+}
+
+/// Pressure differences of the knots of a [`LeakageMap`], Pa.
+pub const LEAK_DP_PA: [f64; 6] = [0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6];
+
+/// The general family of `leakage` (internal leakage of any shape over the
+/// pressure difference and the pressure level): the flow from line 1 to
+/// line 2 is `sign(dP) L(abs(dP)) + g dP (P1 + P2) / (2 MPa)`, dP = P1 - P2,
+/// `L` piecewise linear between the knots [`LEAK_DP_PA`] (0 at 0, extended
+/// along its last segment). A straight `L` is laminar flow, a bent one an
+/// orifice or a seal lip that opens; `g` is a gap that widens with the
+/// pressure.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LeakageMap {
+    /// Flow at the knots 0.25, 0.5, 1, 2, 4 MPa, m^3/s (non-negative).
+    pub q_m3ps: [f64; 5],
+    /// Conductance per MPa of mean line pressure, m^3/(s Pa) (non-negative).
+    #[serde(default)]
+    pub g_m3pspa: f64,
+}
+
+impl LeakageMap {
+    /// The leakage flow from line 1 to line 2, m^3/s.
+    pub fn flow(&self, p1_pa: f64, p2_pa: f64) -> f64 {
+        let dp = p1_pa - p2_pa;
+        let mut q = [0.0; 6];
+        q[1..].copy_from_slice(&self.q_m3ps);
+        let mean = (0.5 * (p1_pa + p2_pa) / SEAL_P_REF_PA).max(0.0);
+        interp(&LEAK_DP_PA, &q, dp.abs(), false).copysign(dp) + self.g_m3pspa * dp * mean
+    }
+
+    /// Whether the map is usable: every value finite and non-negative.
+    pub fn is_valid(&self) -> bool {
+        self.q_m3ps
+            .iter()
+            .chain([&self.g_m3pspa])
+            .all(|q| q.is_finite() && *q >= 0.0)
+    }
+}
+
+/// Delays of the taps of a [`SensorFilter`], s: its impulse response on a
+/// grid of 1 ms up to 4 ms, coarser up to 32 ms.
+pub const FILTER_DELAYS_S: [f64; 11] = [
+    0.0, 1e-3, 2e-3, 3e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3, 24e-3, 32e-3,
+];
+
+/// The general family of `sensor_delay` (a lag of any shape on any one of
+/// the LVDT, the encoder and the pressures): a causal, non-negative impulse
+/// response with unit gain at rest. The channel records
+/// `sum_j w_j v(t - d_j) / sum_j w_j` of its true value `v`, `d_j` the
+/// delays [`FILTER_DELAYS_S`] (between samples `v` is interpolated
+/// linearly). One weight is a pure delay, weights falling off with the
+/// delay a first-order lag, equal weights a moving average.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorFilter {
+    /// The sensor (not the force sensor, whose reading drives the load).
+    pub channel: CalChannel,
+    /// Weight of each tap (non-negative, not all zero; normalised on use).
+    pub weights: [f64; 11],
+}
+
+impl SensorFilter {
+    /// The weights normalised to a sum of 1.
+    pub fn normalised(&self) -> [f64; 11] {
+        let sum: f64 = self.weights.iter().sum();
+        self.weights.map(|w| w / sum)
+    }
+
+    /// Mean delay of the impulse response (its centre of mass), s.
+    pub fn mean_delay_s(&self) -> f64 {
+        self.normalised()
+            .iter()
+            .zip(FILTER_DELAYS_S)
+            .map(|(w, d)| w * d)
+            .sum()
+    }
+
+    /// Whether the filter is usable: a channel other than the force
+    /// sensor, weights finite, non-negative, not all zero.
+    pub fn is_valid(&self) -> bool {
+        self.channel != CalChannel::Ft
+            && self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && self.weights.iter().sum::<f64>() > 0.0
+    }
+}
+
+/// Knots of a [`SensorMap`].
+pub const MAP_KNOTS: usize = 6;
+
+/// The general family of `sensor_calibration` (a static map of any
+/// monotone shape on one of the LVDT, the encoder and the pressures): the
+/// channel records the piecewise-linear interpolation of `(knots_si,
+/// readings_si)` at its true value, extended linearly beyond the end knots.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorMap {
+    /// The sensor (not the force sensor, whose reading drives the load).
+    pub channel: CalChannel,
+    /// True values at the knots, SI (strictly increasing).
+    pub knots_si: [f64; MAP_KNOTS],
+    /// Recorded values at the knots, SI (strictly increasing).
+    pub readings_si: [f64; MAP_KNOTS],
+}
+
+/// Piecewise-linear interpolation through `(xs, ys)` (`xs` increasing),
+/// extended linearly beyond the ends.
+fn pwl(xs: &[f64; MAP_KNOTS], ys: &[f64; MAP_KNOTS], x: f64) -> f64 {
+    let i = xs[1..MAP_KNOTS - 1].iter().take_while(|k| x > **k).count();
+    let w = (x - xs[i]) / (xs[i + 1] - xs[i]);
+    ys[i] + w * (ys[i + 1] - ys[i])
+}
+
+impl SensorMap {
+    /// The recorded value of the true value `v`.
+    pub fn map(&self, v: f64) -> f64 {
+        pwl(&self.knots_si, &self.readings_si, v)
+    }
+
+    /// The true value of the recorded value `y` (exact: the map is
+    /// monotone and piecewise linear).
+    pub fn invert(&self, y: f64) -> f64 {
+        pwl(&self.readings_si, &self.knots_si, y)
+    }
+
+    /// Whether the map is usable: a channel other than the force sensor,
+    /// knots and readings finite and strictly increasing (a monotone map,
+    /// so that a reading names one true value), every reading within one
+    /// span of its knot.
+    pub fn is_valid(&self) -> bool {
+        let rising = |v: &[f64; MAP_KNOTS]| {
+            v.iter().all(|x| x.is_finite()) && v.windows(2).all(|w| w[1] > w[0])
+        };
+        let span = self.channel.span();
+        self.channel != CalChannel::Ft
+            && rising(&self.knots_si)
+            && rising(&self.readings_si)
+            && self
+                .knots_si
+                .iter()
+                .zip(&self.readings_si)
+                .all(|(k, r)| (r - k).abs() <= span)
+    }
+}
+
 /// The rig's nominal parameters off by ratios (1: nominal): the diagnosis's
 /// grey-box re-estimate (`parameters`). To set a simulated rig's parameters
 /// directly, `[plant.params]` is the way; this is that same change as an
@@ -464,14 +672,23 @@ impl ParameterRatios {
 pub struct Effects {
     /// `leakage`.
     pub leakage: Option<Leakage>,
+    /// `leakage` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub leakage_map: Option<LeakageMap>,
     /// `friction`.
     pub friction: Option<Friction>,
+    /// `friction` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub friction_map: Option<FrictionMap>,
     /// `backlash`.
     pub backlash: Option<Backlash>,
     /// `air`.
     pub air: Option<Air>,
     /// `sensor_delay`.
     pub sensor_delay: Option<SensorDelay>,
+    /// `sensor_delay` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub sensor_filter: Option<SensorFilter>,
     /// `motor_limit`.
     pub motor_limit: Option<MotorLimit>,
     /// `motor_limit` in its general family (exclusive with the named form).
@@ -486,6 +703,9 @@ pub struct Effects {
     pub accumulator_thermal: Option<AccumulatorThermal>,
     /// `sensor_calibration`.
     pub sensor_calibration: Option<SensorCalibration>,
+    /// `sensor_calibration` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub sensor_map: Option<SensorMap>,
     /// `parameters`.
     pub parameters: Option<ParameterRatios>,
 }
@@ -682,16 +902,20 @@ impl Effects {
     /// No effect: the nominal plant.
     pub const NONE: Self = Self {
         leakage: None,
+        leakage_map: None,
         friction: None,
+        friction_map: None,
         backlash: None,
         air: None,
         sensor_delay: None,
+        sensor_filter: None,
         motor_limit: None,
         servo_envelope: None,
         hose_hysteresis: None,
         hose_spectrum: None,
         accumulator_thermal: None,
         sensor_calibration: None,
+        sensor_map: None,
         parameters: None,
     };
 
@@ -959,6 +1183,64 @@ impl Effects {
                 return constraint(
                     EffectKind::HoseHysteresis,
                     "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
+                );
+            }
+        }
+        if let Some(l) = self.leakage_map {
+            if self.leakage.is_some() {
+                return constraint(
+                    EffectKind::Leakage,
+                    "the named form and the leakage map exclude each other",
+                );
+            }
+            if !l.is_valid() {
+                return constraint(
+                    EffectKind::Leakage,
+                    "leakage_map: q_m3ps and g_m3pspa must be finite and >= 0",
+                );
+            }
+        }
+        if let Some(f) = self.friction_map {
+            if self.friction.is_some() {
+                return constraint(
+                    EffectKind::Friction,
+                    "the named form and the friction map exclude each other",
+                );
+            }
+            if !f.is_valid() {
+                return constraint(
+                    EffectKind::Friction,
+                    "friction_map: force_n and n_per_mpa must be finite and >= 0",
+                );
+            }
+        }
+        if let Some(f) = self.sensor_filter {
+            if self.sensor_delay.is_some() {
+                return constraint(
+                    EffectKind::SensorDelay,
+                    "the named form and the sensor filter exclude each other",
+                );
+            }
+            if !f.is_valid() {
+                return constraint(
+                    EffectKind::SensorDelay,
+                    "sensor_filter: channel xo_m, xi_m, p1_pa or p2_pa, weights non-negative \
+                     and not all zero",
+                );
+            }
+        }
+        if let Some(m) = self.sensor_map {
+            if self.sensor_calibration.is_some() {
+                return constraint(
+                    EffectKind::SensorCalibration,
+                    "the named form and the sensor map exclude each other",
+                );
+            }
+            if !m.is_valid() {
+                return constraint(
+                    EffectKind::SensorCalibration,
+                    "sensor_map: channel xo_m, xi_m, p1_pa or p2_pa, knots_si and readings_si \
+                     strictly increasing, each reading within the channel's span of its knot",
                 );
             }
         }
@@ -1247,6 +1529,83 @@ mod tests {
         assert!((q(&orifice, 4e6) / q(&orifice, 1e6) - 2.0).abs() < 0.01);
         assert_eq!(q(&orifice, -4e6), -q(&orifice, 4e6));
         assert_eq!(q(&orifice, 0.0), 0.0);
+    }
+
+    #[test]
+    fn seal_maps_take_the_named_forms_and_more() {
+        // A flat friction map is Coulomb friction; the pressure term adds
+        // k (P1 + P2) / 1 MPa.
+        let coulomb = Friction {
+            coulomb_n: 40.0,
+            static_n: 40.0,
+            stribeck_mps: 2e-3,
+        };
+        let flat = FrictionMap {
+            force_n: [40.0; 6],
+            n_per_mpa: 0.0,
+        };
+        for v in [-0.2, -0.01, -1e-4, 0.0, 3e-5, 1e-3, 0.05, 0.3] {
+            assert_eq!(
+                flat.force(v, 2e6, 1e6),
+                friction_force_n(&coulomb, v),
+                "{v}"
+            );
+        }
+        let pressed = FrictionMap {
+            n_per_mpa: 5.0,
+            ..flat
+        };
+        assert!((pressed.force(0.01, 2e6, 1e6) + 55.0).abs() < 1e-9);
+        // Between knots the magnitude is linear; beyond the last, flat.
+        let curve = FrictionMap {
+            force_n: [60.0, 40.0, 30.0, 30.0, 50.0, 90.0],
+            n_per_mpa: 0.0,
+        };
+        assert!((curve.force(1.25e-3, 0.0, 0.0) + 35.0).abs() < 1e-9);
+        assert!((curve.force(-0.5, 0.0, 0.0) - 90.0).abs() < 1e-9);
+        // A straight leakage map is the named laminar leakage; the level
+        // term adds g dP (P1 + P2) / (2 MPa); the flow is odd in dP.
+        let laminar = Leakage {
+            g_m3pspa: 1e-13,
+            exponent: 1.0,
+        };
+        let straight = LeakageMap {
+            q_m3ps: std::array::from_fn(|i| 1e-13 * LEAK_DP_PA[i + 1]),
+            g_m3pspa: 0.0,
+        };
+        for (p1, p2) in [
+            (3e6, 1e6),
+            (1e6, 3e6),
+            (7e6, 0.0),
+            (2e6, 2e6),
+            (1.3e6, 1.2e6),
+        ] {
+            let (a, b) = (straight.flow(p1, p2), leak_flow_m3ps(&laminar, p1, p2));
+            assert!(
+                (a - b).abs() <= 1e-12 * b.abs().max(1e-12),
+                "{p1} {p2}: {a} {b}"
+            );
+        }
+        let level = LeakageMap {
+            g_m3pspa: 2e-14,
+            ..straight
+        };
+        let extra = level.flow(3e6, 1e6) - straight.flow(3e6, 1e6);
+        assert!((extra - 2e-14 * 2e6 * 2.0).abs() < 1e-20);
+        assert_eq!(level.flow(1e6, 3e6), -level.flow(3e6, 1e6));
+        // Negative or non-finite values are refused.
+        let mut e = Effects::NONE;
+        e.friction_map = Some(FrictionMap {
+            n_per_mpa: -1.0,
+            ..flat
+        });
+        assert!(e.validate().is_err());
+        e.friction_map = Some(flat);
+        e.friction = Some(coulomb);
+        assert!(
+            e.validate().is_err(),
+            "named and general exclude each other"
+        );
     }
 
     #[test]

@@ -2,8 +2,10 @@
 //!
 //! The effects enter the plant's equations (docs/model.md section 4) at these places:
 //!
-//! * `leakage`: Q1 -= Ql, Q2 += Ql with Ql = G (P1 - P2);
-//! * `friction`: the Stribeck force is added to the actuating piston's forces;
+//! * `leakage`: Q1 -= Ql, Q2 += Ql with Ql = G (P1 - P2) (or the general
+//!   family's learned flow);
+//! * `friction`: the Stribeck force (or the general family's learned force)
+//!   is added to the actuating piston's forces;
 //! * `backlash`: the power piston (position xp, an extra state) sits behind
 //!   the motor (the encoder's Xi) by the play's flank the hydraulic force
 //!   pushes it against plus the screw's deflection under that force (a
@@ -18,7 +20,8 @@
 //!   holds a share of the hose wall's compliance while not;
 //! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
 //!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0);
-//! * `sensor_delay` and `sensor_calibration` act on the readings, not here
+//! * `sensor_delay` and `sensor_calibration` (named or general) act on the
+//!   readings, not here
 //!   (see [`crate::model::sensors`]);
 //! * `parameters` builds the plant with its parameters scaled
 //!   ([`effects::ParameterRatios::apply`]); the equations are the plant's.
@@ -137,7 +140,9 @@ impl Rig {
         }
         let plant_only = Effects {
             sensor_delay: None,
+            sensor_filter: None,
             sensor_calibration: None,
+            sensor_map: None,
             parameters: None,
             ..effects
         }
@@ -241,6 +246,9 @@ impl Rig {
         if let Some(f) = &e.friction {
             fo += effects::friction_force_n(f, x.vo_mps);
         }
+        if let Some(f) = &e.friction_map {
+            fo += f.force(x.vo_mps, x.p1_pa, x.p2_pa);
+        }
         let motor = (x.xi_m, x.vi_mps);
         // The lines see the power piston: behind the backlash at ext.xp_m.
         if e.backlash.is_some() {
@@ -264,7 +272,10 @@ impl Rig {
         let ql = e
             .leakage
             .as_ref()
-            .map_or(0.0, |l| effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa));
+            .map_or(0.0, |l| effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa))
+            + e.leakage_map
+                .as_ref()
+                .map_or(0.0, |l| l.flow(x.p1_pa, x.p2_pa));
         let lines = |vp: f64| self.line_rates(s, &x, vp, qa - qa_nom, ql);
         // Behind a backlash the piston sits where the coupling carries the
         // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt

@@ -18,7 +18,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::model::effects::{CalChannel, SensorCalibration, SensorDelay};
+use crate::model::effects::{
+    CalChannel, Effects, SensorCalibration, SensorDelay, SensorFilter, SensorMap, FILTER_DELAYS_S,
+};
 
 /// How sensors report the plant state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -190,6 +192,72 @@ impl DelayLine {
     }
 }
 
+/// The general `sensor_delay` ([`SensorFilter`]) at readings taken every
+/// `dt_s`: the channel's past true values, newest first.
+#[derive(Clone, Debug)]
+struct FilterLine {
+    filter: SensorFilter,
+    weights: [f64; 11],
+    dt_s: f64,
+    /// Samples kept: enough for the longest delay and its interpolation.
+    len: usize,
+    past: std::collections::VecDeque<f64>,
+}
+
+impl FilterLine {
+    fn new(f: &SensorFilter, dt_s: f64) -> Self {
+        let last = FILTER_DELAYS_S[FILTER_DELAYS_S.len() - 1];
+        let n = (last / dt_s).ceil() as usize + 2;
+        Self {
+            filter: *f,
+            weights: f.normalised(),
+            dt_s,
+            len: n,
+            past: std::collections::VecDeque::with_capacity(n),
+        }
+    }
+
+    /// The filtered reading of the true value `v` now.
+    fn apply(&mut self, v: f64) -> f64 {
+        // A run starts at rest: the first value fills the past.
+        if self.past.is_empty() {
+            self.past.extend(std::iter::repeat_n(v, self.len));
+        }
+        self.past.pop_back();
+        self.past.push_front(v);
+        let at = |k: usize| self.past[k.min(self.past.len() - 1)];
+        self.weights
+            .iter()
+            .zip(FILTER_DELAYS_S)
+            .map(|(w, d)| {
+                let x = d / self.dt_s;
+                let k = x.floor();
+                let frac = x - k;
+                let k = k as usize;
+                w * (at(k) + frac * (at(k + 1) - at(k)))
+            })
+            .sum()
+    }
+}
+
+/// The readings of a signal `v` (one value per reading, every `dt_s`)
+/// through the filter `f` (its channel aside): what [`Sensors`] reports.
+pub fn filtered(f: &SensorFilter, v: &[f64], dt_s: f64) -> Vec<f64> {
+    let mut line = FilterLine::new(f, dt_s);
+    v.iter().map(|x| line.apply(*x)).collect()
+}
+
+/// The value of `ch` in `r`, mutable.
+fn channel_mut(r: &mut Readings, ch: CalChannel) -> &mut f64 {
+    match ch {
+        CalChannel::Xo => &mut r.xo_m,
+        CalChannel::Xi => &mut r.xi_m,
+        CalChannel::P1 => &mut r.p1_pa,
+        CalChannel::P2 => &mut r.p2_pa,
+        CalChannel::Ft => &mut r.ft_n,
+    }
+}
+
 impl Readings {
     /// The readings as the control core's sample (f32, as the board has them).
     pub fn to_sample(&self) -> dca_core::controller::Sample {
@@ -206,13 +274,7 @@ impl Readings {
 /// `r` with the channel of `c` mapped by its calibration.
 fn calibrate(c: &SensorCalibration, r: &Readings) -> Readings {
     let mut out = *r;
-    let v = match c.channel {
-        CalChannel::Xo => &mut out.xo_m,
-        CalChannel::Xi => &mut out.xi_m,
-        CalChannel::P1 => &mut out.p1_pa,
-        CalChannel::P2 => &mut out.p2_pa,
-        CalChannel::Ft => &mut out.ft_n,
-    };
+    let v = channel_mut(&mut out, c.channel);
     *v = c.map(*v);
     out
 }
@@ -223,7 +285,9 @@ pub struct Sensors {
     mode: SensorMode,
     rng: ChaCha8Rng,
     delay: Option<DelayLine>,
+    filter: Option<FilterLine>,
     calibration: Option<SensorCalibration>,
+    map: Option<SensorMap>,
 }
 
 impl Sensors {
@@ -233,8 +297,27 @@ impl Sensors {
             mode,
             rng: ChaCha8Rng::seed_from_u64(seed),
             delay: None,
+            filter: None,
             calibration: None,
+            map: None,
         }
+    }
+
+    /// Add the sensor effects of `effects` for readings taken every `dt_s`:
+    /// `sensor_delay` (named, or its general family) and then
+    /// `sensor_calibration` (named, or its general family).
+    pub fn with_effects(mut self, effects: &Effects, dt_s: f64) -> Self {
+        if let Some(d) = &effects.sensor_delay {
+            self = self.with_delay(d, dt_s);
+        }
+        if let Some(f) = &effects.sensor_filter {
+            self.filter = Some(FilterLine::new(f, dt_s));
+        }
+        if let Some(c) = &effects.sensor_calibration {
+            self = self.with_calibration(c);
+        }
+        self.map = effects.sensor_map;
+        self
     }
 
     /// Add the `sensor_calibration` effect: its channel records its map of
@@ -275,6 +358,16 @@ impl Sensors {
             }
             None => truth,
         };
+        let mut shaped = *truth;
+        if let Some(f) = &mut self.filter {
+            let v = channel_mut(&mut shaped, f.filter.channel);
+            *v = f.apply(*v);
+        }
+        if let Some(m) = &self.map {
+            let v = channel_mut(&mut shaped, m.channel);
+            *v = m.map(*v);
+        }
+        let truth = &shaped;
         let calibrated;
         let truth = match &self.calibration {
             Some(c) => {

@@ -105,18 +105,12 @@ pub trait Observer<S: Stepper> {
     fn observe(&mut self, tick: &TickView<'_, S::Output>, stepper: &S) -> Result<(), S::Error>;
 }
 
-/// A run's sensors in `mode`, noise seeded with `seed`, with the
-/// `sensor_delay` effect of `effects` (if on) for readings taken every
-/// `tick_s` seconds (the control period), and its `sensor_calibration`.
+/// A run's sensors in `mode`, noise seeded with `seed`, with the sensor
+/// effects of `effects` (`sensor_delay`, `sensor_calibration`, named or in
+/// their general families) for readings taken every `tick_s` seconds (the
+/// control period).
 pub fn sensors(mode: SensorMode, seed: u64, effects: &Effects, tick_s: f64) -> Sensors {
-    let mut sensors = Sensors::new(mode, seed);
-    if let Some(d) = &effects.sensor_delay {
-        sensors = sensors.with_delay(d, tick_s);
-    }
-    if let Some(c) = &effects.sensor_calibration {
-        sensors = sensors.with_calibration(c);
-    }
-    sensors
+    Sensors::new(mode, seed).with_effects(effects, tick_s)
 }
 
 /// Run `scenario` on `rig` (see the module documentation): the rig starts at

@@ -224,6 +224,41 @@ pub fn log_meta_with(
         let c: Vec<String> = h.c_m3pp.iter().map(|c| format!("{c:e}")).collect();
         effects.push(format!("hose_spectrum:c_m3pp=[{}]", c.join(" ")));
     }
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:e}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    if let Some(l) = &spec.effects.leakage_map {
+        effects.push(format!(
+            "leakage_map:q_m3ps=[{}],g_m3pspa={:e}",
+            list(&l.q_m3ps),
+            l.g_m3pspa
+        ));
+    }
+    if let Some(f) = &spec.effects.friction_map {
+        effects.push(format!(
+            "friction_map:force_n=[{}],n_per_mpa={:e}",
+            list(&f.force_n),
+            f.n_per_mpa
+        ));
+    }
+    if let Some(f) = &spec.effects.sensor_filter {
+        effects.push(format!(
+            "sensor_filter:channel={},weights=[{}]",
+            f.channel.name(),
+            list(&f.weights)
+        ));
+    }
+    if let Some(m) = &spec.effects.sensor_map {
+        effects.push(format!(
+            "sensor_map:channel={},knots_si=[{}],readings_si=[{}]",
+            m.channel.name(),
+            list(&m.knots_si),
+            list(&m.readings_si)
+        ));
+    }
     vec![
         (
             "effects",
