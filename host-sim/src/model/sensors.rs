@@ -206,6 +206,8 @@ struct FilterLine {
 
 impl FilterLine {
     fn new(f: &SensorFilter, dt_s: f64) -> Self {
+        // Without a sample period (a one-row log) every tap reads now.
+        let dt_s = if dt_s > 0.0 { dt_s } else { f64::INFINITY };
         let last = FILTER_DELAYS_S[FILTER_DELAYS_S.len() - 1];
         let n = (last / dt_s).ceil() as usize + 2;
         Self {
@@ -392,6 +394,53 @@ impl Sensors {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_filter_delays_averages_and_starts_at_rest() {
+        let ramp: Vec<f64> = (0..40).map(|k| k as f64).collect();
+        let mut w = [0.0; 11];
+        // A pure 3 ms delay at 1 ms: the ramp three samples late (the past
+        // before the first sample is the first sample).
+        w[3] = 2.0;
+        let f = SensorFilter {
+            channel: CalChannel::Xi,
+            weights: w,
+        };
+        let y = filtered(&f, &ramp, 1e-3);
+        assert_eq!(&y[..5], &[0.0, 0.0, 0.0, 0.0, 1.0]);
+        assert_eq!(y[39], 36.0);
+        // At 2 ms rows the 3 ms tap falls between rows: interpolated.
+        assert_eq!(filtered(&f, &ramp, 2e-3)[10], 8.5);
+        // A moving average over taps 0 to 4 ms: two samples late on a ramp.
+        let avg = SensorFilter {
+            weights: [1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            ..f
+        };
+        assert!((avg.mean_delay_s() - 2e-3).abs() < 1e-15);
+        assert_eq!(filtered(&avg, &ramp, 1e-3)[20], 18.0);
+        // Without a sample period every tap reads the present value.
+        assert_eq!(filtered(&f, &ramp, 0.0), ramp);
+        // Through the sensor set, only the filter's channel is filtered.
+        let mut s = Sensors::new(SensorMode::Ideal, 0).with_effects(
+            &Effects {
+                sensor_filter: Some(f),
+                ..Effects::NONE
+            },
+            1e-3,
+        );
+        let mut last = Readings::default();
+        for k in 0..10 {
+            let v = k as f64;
+            last = s.read(&Readings {
+                xi_m: v,
+                xo_m: v,
+                p1_pa: v,
+                p2_pa: v,
+                ft_n: v,
+            });
+        }
+        assert_eq!((last.xi_m, last.xo_m, last.p1_pa), (6.0, 9.0, 9.0));
+    }
 
     #[test]
     fn delay_shifts_and_lag_smooths_the_position() {
