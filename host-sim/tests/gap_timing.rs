@@ -10,10 +10,11 @@ use std::time::Instant;
 
 use dca_core::controller::ControllerKind;
 use host_sim::gap::diagnose::{diagnose, Options};
-use host_sim::gap::measure::gap;
+use host_sim::gap::measure::{gap, replays};
 use host_sim::gap::run::Run;
 use host_sim::gap::validation::{cases, check_scenario, fit_scenario, rig_log};
 use host_sim::gap::{calibrate, grey_box};
+use host_sim::model::effects::Effects;
 use host_sim::model::plant::Plant;
 
 fn median(v: &mut [f64]) -> f64 {
@@ -39,7 +40,8 @@ fn one_diagnosis_on_one_core() {
             let fit = vec![Run::new("fit.csv".into(), fit_log.clone())];
             let check = vec![Run::new("check.csv".into(), check_log.clone())];
             let t0 = Instant::now();
-            let cal = calibrate::fit(&fit, &base, opts.dt_s).expect("replays");
+            let sims = replays(&fit, &base, &Effects::NONE, opts.dt_s);
+            let cal = calibrate::fit(&fit, &sims, &base, opts.dt_s).expect("a map");
             let _ = gap(&check, &base, &cal.effects, opts.dt_s);
             let gb = grey_box::fit(&fit, &base, opts.dt_s).expect("replays");
             let _ = gap(&check, &base, &gb.effects, opts.dt_s);

@@ -16,8 +16,8 @@
 //! the check runs, where the dynamics differ, must confirm it (the policy).
 
 use super::lsq::{self, levenberg_marquardt};
-use super::measure::{gap_bounded, rig_with};
-use super::replay::{measured, replay_with_load};
+use super::measure::gap_bounded;
+use super::replay::{measured, Replay};
 use super::run::Run;
 use crate::model::effects::{CalChannel, Effects, SensorCalibration};
 use crate::model::plant::Plant;
@@ -68,14 +68,10 @@ fn static_maps(pairs: &[(f64, f64)], span: f64) -> [Option<[f64; 3]>; 2] {
     out
 }
 
-/// Fit the calibration of each sensor on `runs` and keep the best; `None`
-/// when the nominal model cannot be replayed.
-pub fn fit(runs: &[Run], base: &Plant, dt_s: f64) -> Option<CalFit> {
-    let rig = rig_with(base, &Effects::NONE)?;
-    let replays: Vec<_> = runs
-        .iter()
-        .map(|r| replay_with_load(&r.log, &r.load, &rig, dt_s))
-        .collect();
+/// Fit the calibration of each sensor on `runs`, whose nominal replays are
+/// `replays`, and keep the best; `None` when no map lowers the gap.
+pub fn fit(runs: &[Run], replays: &[Replay], base: &Plant, dt_s: f64) -> Option<CalFit> {
+    // The nominal replay counts as one, as when this fit made it itself.
     let mut evals = 1;
     let mut best: Option<CalFit> = None;
     // The gap with `c` when it beats `stop` (None: invalid or not better).
@@ -95,7 +91,7 @@ pub fn fit(runs: &[Run], base: &Plant, dt_s: f64) -> Option<CalFit> {
         let c = ch.index();
         let pairs: Vec<(f64, f64)> = runs
             .iter()
-            .zip(&replays)
+            .zip(replays)
             .flat_map(|(r, s)| {
                 measured(&r.log)[c]
                     .iter()

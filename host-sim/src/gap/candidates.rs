@@ -14,6 +14,7 @@ use super::fit::{minimize, Bound};
 use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
 use super::progress::Progress;
+use super::replay::Replay;
 use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
@@ -72,6 +73,9 @@ pub struct Fitter<'a> {
     pub fit: &'a [Run],
     /// The held-out runs, only evaluated.
     pub check: &'a [Run],
+    /// The nominal model's replays of the fit runs (the sensors' fits read
+    /// them).
+    pub nominal_fit: &'a [Replay],
     /// The nominal plant.
     pub base: &'a Plant,
     /// Starting points of the effects whose gap is a narrow valley
@@ -223,11 +227,23 @@ impl Fitter<'_> {
             EffectKind::Friction => self.fit_friction_map(before_fit)?,
             EffectKind::Leakage => self.fit_leakage_map(before_fit)?,
             EffectKind::SensorDelay => {
-                let f = sensor_family::fit_filter(self.fit, self.base, self.dt_s, before_fit)?;
+                let f = sensor_family::fit_filter(
+                    self.fit,
+                    self.nominal_fit,
+                    self.base,
+                    self.dt_s,
+                    before_fit,
+                )?;
                 (f.effects, f.gap)
             }
             EffectKind::SensorCalibration => {
-                let f = sensor_family::fit_map(self.fit, self.base, self.dt_s, before_fit)?;
+                let f = sensor_family::fit_map(
+                    self.fit,
+                    self.nominal_fit,
+                    self.base,
+                    self.dt_s,
+                    before_fit,
+                )?;
                 (f.effects, f.gap)
             }
             _ => return None,
@@ -319,19 +335,21 @@ impl Fitter<'_> {
             evals: 1,
         };
         match k {
-            EffectKind::SensorCalibration => match calibrate::fit(self.fit, self.base, self.dt_s) {
-                Some(c) => (
-                    Fitted {
-                        effects: c.effects,
-                        gap: c.gap,
-                        evals: c.evals,
-                    },
-                    c.form,
-                    None,
-                    true,
-                ),
-                None => (nominal(), "none fitted".into(), None, true),
-            },
+            EffectKind::SensorCalibration => {
+                match calibrate::fit(self.fit, self.nominal_fit, self.base, self.dt_s) {
+                    Some(c) => (
+                        Fitted {
+                            effects: c.effects,
+                            gap: c.gap,
+                            evals: c.evals,
+                        },
+                        c.form,
+                        None,
+                        true,
+                    ),
+                    None => (nominal(), "none fitted".into(), None, true),
+                }
+            }
             EffectKind::Parameters => match grey_box::fit(self.fit, self.base, self.dt_s) {
                 Some(g) => {
                     let keys: Vec<&str> = g.estimates.iter().map(|e| e.key.as_str()).collect();

@@ -11,12 +11,12 @@ use std::time::Instant;
 use super::candidates::{params_map, CandidateFit, Fitter, PairFit};
 use super::diagnosis::{Combined, Details, Diagnosis, Second, Verdict};
 use super::localise::{channel_reports, where_list};
-use super::measure::{channel_excess, gap_of, pooled, rig_with, Shrink, GAP_METRIC};
+use super::measure::{channel_excess, gap_of, pooled, replays, Shrink, GAP_METRIC};
 use super::policy::{self, Decision};
 use super::prefit;
 use super::progress::Progress;
 use super::reasons;
-use super::replay::{replay_with_load, Replay};
+use super::replay::Replay;
 use super::run::Run;
 use super::stats::BANDS_HZ;
 use crate::model::effects::{EffectKind, Effects};
@@ -59,18 +59,6 @@ struct Nominal {
     pooled: f64,
     /// Replays, fit runs then check runs.
     replays: Vec<Replay>,
-}
-
-/// Replays of `runs` on `base` with `effects` (none when the effects cannot
-/// go on the plant).
-fn replays(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64) -> Vec<Replay> {
-    match rig_with(base, effects) {
-        Some(rig) => runs
-            .iter()
-            .map(|r| replay_with_load(&r.log, &r.load, &rig, dt_s))
-            .collect(),
-        None => Vec::new(),
-    }
 }
 
 fn nominal(fit: &[Run], check: &[Run], base: &Plant, dt_s: f64) -> Nominal {
@@ -190,6 +178,7 @@ pub fn diagnose(
     let fitter = Fitter {
         fit: &fit,
         check: &check,
+        nominal_fit: n.replays.get(..fit.len()).unwrap_or_default(),
         base,
         seeds,
         dt_s: opts.dt_s,

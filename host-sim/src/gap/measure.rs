@@ -2,7 +2,7 @@
 //! beyond the noise (see [`GAP_METRIC`]), per run and pooled over runs, and
 //! its shrink when effects are added.
 
-use super::replay::{measured, replay_visit, Replay};
+use super::replay::{measured, replay_visit, replay_with_load, Replay};
 use super::run::Run;
 use crate::model::effects::Effects;
 use crate::model::plant::Plant;
@@ -103,6 +103,18 @@ pub fn pooled(excess: &[[f64; 4]], lens: &[usize]) -> f64 {
 /// The rig of a candidate; `None` when the effects cannot go on this plant.
 pub fn rig_with(base: &Plant, effects: &Effects) -> Option<Rig> {
     Rig::new(base.clone(), *effects).ok()
+}
+
+/// Replays of `runs` on `base` with `effects` (none when the effects cannot
+/// go on the plant).
+pub fn replays(runs: &[Run], base: &Plant, effects: &Effects, dt_s: f64) -> Vec<Replay> {
+    match rig_with(base, effects) {
+        Some(rig) => runs
+            .iter()
+            .map(|r| replay_with_load(&r.log, &r.load, &rig, dt_s))
+            .collect(),
+        None => Vec::new(),
+    }
 }
 
 /// Pooled gap of `runs` given their replays.

@@ -10,14 +10,14 @@
 //!   replayed range (1st to 99th percentile), by linear least squares of
 //!   the recorded channel against the replay.
 //!
-//! Both act on the readings only, so one nominal replay of the fit runs
-//! gives every channel's design matrix; the channel whose fitted family
+//! Both act on the readings only, so the nominal replays of the fit runs
+//! (the diagnosis makes them once) give every channel's design matrix; the channel whose fitted family
 //! leaves the smallest gap on the fit runs is the candidate. The force
 //! sensor is left out of both: its reading drives the replay's load.
 
 use super::lsq;
-use super::measure::{gap_bounded, rig_with};
-use super::replay::{measured, replay_with_load, Replay};
+use super::measure::gap_bounded;
+use super::replay::{measured, Replay};
 use super::run::Run;
 use crate::model::effects::{
     CalChannel, Effects, SensorFilter, SensorMap, FILTER_DELAYS_S, MAP_KNOTS,
@@ -47,17 +47,6 @@ pub struct FamilyFit {
     pub gap: f64,
 }
 
-/// The nominal replays of `runs`; `None` when the nominal model cannot be
-/// built.
-fn nominal_replays(runs: &[Run], base: &Plant, dt_s: f64) -> Option<Vec<Replay>> {
-    let rig = rig_with(base, &Effects::NONE)?;
-    Some(
-        runs.iter()
-            .map(|r| replay_with_load(&r.log, &r.load, &rig, dt_s))
-            .collect(),
-    )
-}
-
 /// The candidate of `effects` for each channel, the one with the smallest
 /// gap on `runs` (only below `before_fit`, the nominal gap).
 fn best_channel(
@@ -82,13 +71,19 @@ fn best_channel(
 }
 
 /// `sensor_delay`'s general family on the fit runs `runs`, whose nominal
-/// gap is `before_fit`; `None` when no channel's filter lowers it.
-pub fn fit_filter(runs: &[Run], base: &Plant, dt_s: f64, before_fit: f64) -> Option<FamilyFit> {
-    let replays = nominal_replays(runs, base, dt_s)?;
+/// replays are `replays` and nominal gap `before_fit`; `None` when no
+/// channel's filter lowers it.
+pub fn fit_filter(
+    runs: &[Run],
+    replays: &[Replay],
+    base: &Plant,
+    dt_s: f64,
+    before_fit: f64,
+) -> Option<FamilyFit> {
     let filters: Vec<SensorFilter> = CHANNELS
         .iter()
         .enumerate()
-        .filter_map(|(c, &ch)| filter_weights(runs, &replays, c).map(|w| (ch, w)))
+        .filter_map(|(c, &ch)| filter_weights(runs, replays, c).map(|w| (ch, w)))
         .map(|(channel, weights)| SensorFilter { channel, weights })
         .collect();
     best_channel(
@@ -235,12 +230,17 @@ fn simplex_lsq<const N: usize>(g: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; 
 }
 
 /// `sensor_calibration`'s general family on the fit runs `runs`, whose
-/// nominal gap is `before_fit`; `None` when no channel's map is monotone
-/// and lowers it.
-pub fn fit_map(runs: &[Run], base: &Plant, dt_s: f64, before_fit: f64) -> Option<FamilyFit> {
-    let replays = nominal_replays(runs, base, dt_s)?;
+/// nominal replays are `replays` and nominal gap `before_fit`; `None` when
+/// no channel's map is monotone and lowers it.
+pub fn fit_map(
+    runs: &[Run],
+    replays: &[Replay],
+    base: &Plant,
+    dt_s: f64,
+    before_fit: f64,
+) -> Option<FamilyFit> {
     let maps: Vec<SensorMap> = (0..CHANNELS.len())
-        .filter_map(|c| map_of(runs, &replays, c))
+        .filter_map(|c| map_of(runs, replays, c))
         .collect();
     best_channel(
         runs,
@@ -325,9 +325,19 @@ fn map_of(runs: &[Run], replays: &[Replay], c: usize) -> Option<SensorMap> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::measure::gap;
+    use super::super::measure::{gap_of, replays};
     use super::super::testing::open_loop_run;
     use super::*;
+
+    /// Plant steps of the tests' replays, s.
+    const DT_S: f64 = 1e-4;
+
+    /// The nominal replays of `runs` and their gap.
+    fn nominal(runs: &[Run], base: &Plant) -> (Vec<Replay>, f64) {
+        let sims = replays(runs, base, &Effects::NONE, DT_S);
+        let before = gap_of(runs, &sims);
+        (sims, before)
+    }
 
     /// A nominal open-loop run: moves out and back at several speeds under
     /// a load that steps.
@@ -366,8 +376,8 @@ mod tests {
         let run = recorded(nominal_run(), CalChannel::Xi, |v| filtered(&truth, v, 1e-3));
         let runs = std::slice::from_ref(&run);
         let base = Plant::nominal();
-        let before = gap(runs, &base, &Effects::NONE, 1e-4);
-        let f = fit_filter(runs, &base, 1e-4, before).expect("fitted");
+        let (sims, before) = nominal(runs, &base);
+        let f = fit_filter(runs, &sims, &base, DT_S, before).expect("fitted");
         let got = f.effects.sensor_filter.expect("a filter");
         assert_eq!(got.channel, CalChannel::Xi);
         assert!(f.gap < 0.01 * before, "{} against {before}", f.gap);
@@ -378,7 +388,7 @@ mod tests {
         );
         // The map's family cannot take a lag: the xi map it finds leaves
         // most of the gap.
-        let m = fit_map(runs, &base, 1e-4, before);
+        let m = fit_map(runs, &sims, &base, DT_S, before);
         assert!(m.is_none_or(|m| m.gap > 0.3 * before), "{m:?}");
     }
 
@@ -392,8 +402,8 @@ mod tests {
         });
         let runs = std::slice::from_ref(&run);
         let base = Plant::nominal();
-        let before = gap(runs, &base, &Effects::NONE, 1e-4);
-        let f = fit_map(runs, &base, 1e-4, before).expect("fitted");
+        let (sims, before) = nominal(runs, &base);
+        let f = fit_map(runs, &sims, &base, DT_S, before).expect("fitted");
         let got = f.effects.sensor_map.expect("a map");
         assert_eq!(got.channel, CalChannel::Xo);
         assert!(f.gap < 0.1 * before, "{} against {before}", f.gap);
@@ -405,7 +415,7 @@ mod tests {
         }
         // The filter's family cannot take a static map: it leaves most of
         // the gap.
-        let lag = fit_filter(runs, &base, 1e-4, before);
+        let lag = fit_filter(runs, &sims, &base, DT_S, before);
         assert!(lag.is_none_or(|l| l.gap > 0.3 * before), "{lag:?}");
     }
 
