@@ -1148,100 +1148,70 @@ impl Effects {
                 );
             }
         }
-        if let Some(s) = self.servo_envelope {
-            if self.motor_limit.is_some() {
-                return constraint(
-                    EffectKind::MotorLimit,
-                    "the named form and the servo envelope exclude each other",
-                );
-            }
-            let most = VALID_SPAN * MOTOR_LIMIT_PARAMS[0].max;
-            if !s.is_valid()
-                || s.force_n[0] > most
-                || s.mass_eq_kg > VALID_SPAN * MOTOR_LIMIT_PARAMS[1].max
-            {
-                return constraint(
-                    EffectKind::MotorLimit,
-                    "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
-                     and non-increasing with speed",
-                );
-            }
-        }
-        if let Some(h) = self.hose_spectrum {
-            if self.hose_hysteresis.is_some() {
-                return constraint(
-                    EffectKind::HoseHysteresis,
-                    "the named form and the hysteresis spectrum exclude each other",
-                );
-            }
-            let most = VALID_SPAN * HOSE_HYSTERESIS_PARAMS[0].max;
-            if !h
-                .c_m3pp
-                .iter()
-                .all(|c| c.is_finite() && (0.0..=most).contains(c))
-            {
-                return constraint(
-                    EffectKind::HoseHysteresis,
-                    "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
-                );
-            }
-        }
-        if let Some(l) = self.leakage_map {
-            if self.leakage.is_some() {
-                return constraint(
-                    EffectKind::Leakage,
-                    "the named form and the leakage map exclude each other",
-                );
-            }
-            if !l.is_valid() {
-                return constraint(
-                    EffectKind::Leakage,
-                    "leakage_map: q_m3ps and g_m3pspa must be finite and >= 0",
-                );
-            }
-        }
-        if let Some(f) = self.friction_map {
-            if self.friction.is_some() {
-                return constraint(
-                    EffectKind::Friction,
-                    "the named form and the friction map exclude each other",
-                );
-            }
-            if !f.is_valid() {
-                return constraint(
-                    EffectKind::Friction,
-                    "friction_map: force_n and n_per_mpa must be finite and >= 0",
-                );
-            }
-        }
-        if let Some(f) = self.sensor_filter {
-            if self.sensor_delay.is_some() {
-                return constraint(
-                    EffectKind::SensorDelay,
-                    "the named form and the sensor filter exclude each other",
-                );
-            }
-            if !f.is_valid() {
-                return constraint(
-                    EffectKind::SensorDelay,
-                    "sensor_filter: channel xo_m, xi_m, p1_pa or p2_pa, weights non-negative \
-                     and not all zero",
-                );
-            }
-        }
-        if let Some(m) = self.sensor_map {
-            if self.sensor_calibration.is_some() {
-                return constraint(
-                    EffectKind::SensorCalibration,
-                    "the named form and the sensor map exclude each other",
-                );
-            }
-            if !m.is_valid() {
-                return constraint(
-                    EffectKind::SensorCalibration,
-                    "sensor_map: channel xo_m, xi_m, p1_pa or p2_pa, knots_si and readings_si \
-                     strictly increasing, each reading within the channel's span of its knot",
-                );
+        // Each general family: its validity when on, whether its named form
+        // is on too, and what to say in either case.
+        let motor_most = VALID_SPAN * MOTOR_LIMIT_PARAMS[0].max;
+        let hose_most = VALID_SPAN * HOSE_HYSTERESIS_PARAMS[0].max;
+        let families = [
+            (
+                EffectKind::MotorLimit,
+                self.servo_envelope.map(|s| {
+                    s.is_valid()
+                        && s.force_n[0] <= motor_most
+                        && s.mass_eq_kg <= VALID_SPAN * MOTOR_LIMIT_PARAMS[1].max
+                }),
+                self.motor_limit.is_some(),
+                "the named form and the servo envelope exclude each other",
+                "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
+                 and non-increasing with speed",
+            ),
+            (
+                EffectKind::HoseHysteresis,
+                self.hose_spectrum.map(|h| {
+                    h.c_m3pp
+                        .iter()
+                        .all(|c| c.is_finite() && (0.0..=hose_most).contains(c))
+                }),
+                self.hose_hysteresis.is_some(),
+                "the named form and the hysteresis spectrum exclude each other",
+                "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
+            ),
+            (
+                EffectKind::Leakage,
+                self.leakage_map.map(|l| l.is_valid()),
+                self.leakage.is_some(),
+                "the named form and the leakage map exclude each other",
+                "leakage_map: q_m3ps and g_m3pspa must be finite and >= 0",
+            ),
+            (
+                EffectKind::Friction,
+                self.friction_map.map(|f| f.is_valid()),
+                self.friction.is_some(),
+                "the named form and the friction map exclude each other",
+                "friction_map: force_n and n_per_mpa must be finite and >= 0",
+            ),
+            (
+                EffectKind::SensorDelay,
+                self.sensor_filter.map(|f| f.is_valid()),
+                self.sensor_delay.is_some(),
+                "the named form and the sensor filter exclude each other",
+                "sensor_filter: channel xo_m, xi_m, p1_pa or p2_pa, weights non-negative \
+                 and not all zero",
+            ),
+            (
+                EffectKind::SensorCalibration,
+                self.sensor_map.map(|m| m.is_valid()),
+                self.sensor_calibration.is_some(),
+                "the named form and the sensor map exclude each other",
+                "sensor_map: channel xo_m, xi_m, p1_pa or p2_pa, knots_si and readings_si \
+                 strictly increasing, each reading within the channel's span of its knot",
+            ),
+        ];
+        for (kind, valid, named, both, invalid) in families {
+            match valid {
+                Some(_) if named => return constraint(kind, both),
+                Some(false) => return constraint(kind, invalid),
+                _ => {}
             }
         }
         if let Some(l) = self.leakage {
