@@ -19,9 +19,7 @@ use super::lsq;
 use super::measure::gap_bounded;
 use super::replay::{measured, Replay};
 use super::run::Run;
-use crate::model::effects::{
-    CalChannel, Effects, SensorFilter, SensorMap, FILTER_DELAYS_S, MAP_KNOTS,
-};
+use crate::model::effects::{CalChannel, Effects, SensorFilter, SensorMap, FILTER_TAPS, MAP_KNOTS};
 use crate::model::plant::Plant;
 use crate::model::sensors::filtered;
 
@@ -100,11 +98,11 @@ pub fn fit_filter(
 
 /// The filter weights of channel `c`: the recorded values `y` against the
 /// replay `v` through each tap alone (`v_j`, the replay delayed by
-/// [`FILTER_DELAYS_S`]`[j]`) as `y - v = sum_j w_j (v_j - v)`, `w_j >= 0`,
+/// [`crate::model::effects::FILTER_DELAYS_S`]`[j]`) as `y - v = sum_j w_j (v_j - v)`, `w_j >= 0`,
 /// `sum_j w_j = 1` (unit gain at rest), in units of each run's channel
 /// scale. `None` when no sample is usable or the channel never moved.
-fn filter_weights(runs: &[Run], replays: &[Replay], c: usize) -> Option<[f64; 11]> {
-    const N: usize = FILTER_DELAYS_S.len();
+fn filter_weights(runs: &[Run], replays: &[Replay], c: usize) -> Option<[f64; FILTER_TAPS]> {
+    const N: usize = FILTER_TAPS;
     let mut g = [[0.0; N]; N];
     let mut b = [0.0; N];
     for (run, sim) in runs.iter().zip(replays) {

@@ -466,9 +466,12 @@ impl LeakageMap {
     }
 }
 
+/// Taps of a [`SensorFilter`].
+pub const FILTER_TAPS: usize = 11;
+
 /// Delays of the taps of a [`SensorFilter`], s: its impulse response on a
 /// grid of 1 ms up to 4 ms, coarser up to 32 ms.
-pub const FILTER_DELAYS_S: [f64; 11] = [
+pub const FILTER_DELAYS_S: [f64; FILTER_TAPS] = [
     0.0, 1e-3, 2e-3, 3e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3, 24e-3, 32e-3,
 ];
 
@@ -485,12 +488,12 @@ pub struct SensorFilter {
     /// The sensor (not the force sensor, whose reading drives the load).
     pub channel: CalChannel,
     /// Weight of each tap (non-negative, not all zero; normalised on use).
-    pub weights: [f64; 11],
+    pub weights: [f64; FILTER_TAPS],
 }
 
 impl SensorFilter {
     /// The weights normalised to a sum of 1.
-    pub fn normalised(&self) -> [f64; 11] {
+    pub fn normalised(&self) -> [f64; FILTER_TAPS] {
         let sum: f64 = self.weights.iter().sum();
         self.weights.map(|w| w / sum)
     }

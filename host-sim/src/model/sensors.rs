@@ -20,6 +20,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 use crate::model::effects::{
     CalChannel, Effects, SensorCalibration, SensorDelay, SensorFilter, SensorMap, FILTER_DELAYS_S,
+    FILTER_TAPS,
 };
 
 /// How sensors report the plant state.
@@ -197,7 +198,7 @@ impl DelayLine {
 #[derive(Clone, Debug)]
 struct FilterLine {
     filter: SensorFilter,
-    weights: [f64; 11],
+    weights: [f64; FILTER_TAPS],
     dt_s: f64,
     /// Samples kept: enough for the longest delay and its interpolation.
     len: usize,
@@ -398,7 +399,7 @@ mod tests {
     #[test]
     fn the_filter_delays_averages_and_starts_at_rest() {
         let ramp: Vec<f64> = (0..40).map(|k| k as f64).collect();
-        let mut w = [0.0; 11];
+        let mut w = [0.0; FILTER_TAPS];
         // A pure 3 ms delay at 1 ms: the ramp three samples late (the past
         // before the first sample is the first sample).
         w[3] = 2.0;
