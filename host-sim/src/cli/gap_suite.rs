@@ -10,11 +10,23 @@ pub struct Args {
     /// Also write the table to this Markdown file.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Only the cases whose name contains this text (repeatable: any of them).
+    #[arg(long, value_name = "TEXT")]
+    only: Vec<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
-    let res = run_suite(&cases(), &Default::default(), true);
+    let chosen: Vec<_> = cases()
+        .into_iter()
+        .filter(|c| a.only.is_empty() || a.only.iter().any(|o| c.name.contains(o.as_str())))
+        .collect();
+    anyhow::ensure!(
+        !chosen.is_empty(),
+        "no case of the suite matches --only {:?}; the cases are listed in docs/gap.md",
+        a.only
+    );
+    let res = run_suite(&chosen, &Default::default(), true);
     let table = markdown(&res);
     println!("{table}");
     eprintln!(

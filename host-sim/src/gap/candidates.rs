@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 
-use super::diagnosis::Candidate;
+use super::diagnosis::{Candidate, NamedForm};
 use super::fit::{minimize, Bound};
 use super::grey_box::Estimate;
 use super::measure::{gap, gap_bounded, Shrink};
@@ -18,8 +18,9 @@ use super::replay::Replay;
 use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
-    EffectKind, Effects, FrictionMap, HysteresisSpectrum, LeakageMap, ENVELOPE_SPEEDS_MPS,
-    FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, LEAK_DP_PA, SPECTRUM_YIELDS_PA,
+    EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
+    ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, GAS_TAUS_S, GAS_WEIGHT_SUM_MAX,
+    LEAK_DP_PA, SPECTRUM_YIELDS_PA,
 };
 use crate::model::plant::Plant;
 
@@ -198,6 +199,7 @@ impl Fitter<'_> {
                         check_after: after_check,
                         evals: f.evals,
                         parameters: estimates,
+                        named: None,
                     },
                     effects: f.effects,
                     plausible,
@@ -207,6 +209,52 @@ impl Fitter<'_> {
             .collect();
         cands.sort_by(|a, b| b.candidate.fit_shrink.total_cmp(&a.candidate.fit_shrink));
         cands
+    }
+
+    /// The chosen candidate `c` (its named form held) refined by the general
+    /// family of its part of the rig, where that family explains the gap
+    /// (`explains`) and `refines` it (the policy's test of the named
+    /// candidate against the family's gaps on the fit and check runs); the
+    /// named form's parameters and shrinks are kept beside it. `None` where
+    /// `c` is already general, its part has no general family, or the family
+    /// does not refine it.
+    pub fn refine(
+        &self,
+        c: &CandidateFit,
+        before_fit: f64,
+        before_check: f64,
+        explains: &dyn Fn(f64, f64) -> bool,
+        refines: &dyn Fn(&Candidate, f64, f64) -> bool,
+    ) -> Option<CandidateFit> {
+        if c.general || !EffectKind::CATALOGUE.contains(&c.kind) {
+            return None;
+        }
+        let (g, g_check) = self.fit_general(c.kind, before_fit)?;
+        if !(explains(g.gap, g_check) && refines(&c.candidate, g.gap, g_check)) {
+            return None;
+        }
+        let named = &c.candidate;
+        let mut out = c.clone();
+        out.candidate.form = format!(
+            "{} (refines the named form, which held too: fit shrink {:.0} %, check shrink {:.0} %)",
+            general_form(c.kind),
+            100.0 * named.fit_shrink,
+            100.0 * named.check_shrink,
+        );
+        out.candidate.params = params_map(&g.effects, c.kind);
+        out.candidate.fit_shrink = Shrink::new(before_fit, g.gap).shrink;
+        out.candidate.check_shrink = Shrink::new(before_check, g_check).shrink;
+        out.candidate.fit_after = g.gap;
+        out.candidate.check_after = g_check;
+        out.candidate.evals += g.evals;
+        out.candidate.named = Some(NamedForm {
+            params: named.params.clone(),
+            fit_shrink: named.fit_shrink,
+            check_shrink: named.check_shrink,
+        });
+        out.effects = g.effects;
+        out.general = true;
+        Some(out)
     }
 
     /// The general family of `k`'s part of the rig fitted on the fit runs
@@ -226,6 +274,7 @@ impl Fitter<'_> {
             EffectKind::HoseHysteresis => self.fit_spectrum(before_fit)?,
             EffectKind::Friction => self.fit_friction_map(before_fit)?,
             EffectKind::Leakage => self.fit_leakage_map(before_fit)?,
+            EffectKind::AccumulatorThermal => self.fit_gas_relaxation(before_fit)?,
             EffectKind::SensorDelay => {
                 let f = sensor_family::fit_filter(
                     self.fit,
@@ -325,6 +374,29 @@ impl Fitter<'_> {
         self.fit_learned(6, &with, before_fit)
     }
 
+    /// The accumulator's general family ([`GasRelaxation`]): the weights of
+    /// the six relaxations in units of 0.02 (a total beyond
+    /// [`GAS_WEIGHT_SUM_MAX`] is scaled back onto it).
+    fn fit_gas_relaxation(&self, before_fit: f64) -> Option<(Effects, f64)> {
+        const UNIT: f64 = 0.02;
+        let with = |x: &[f64]| {
+            let w: [f64; 6] = std::array::from_fn(|i| x[i].max(0.0) * UNIT);
+            let sum: f64 = w.iter().sum();
+            let scale = if sum > GAS_WEIGHT_SUM_MAX {
+                GAS_WEIGHT_SUM_MAX / sum
+            } else {
+                1.0
+            };
+            Effects {
+                gas_relaxation: Some(GasRelaxation {
+                    weights: w.map(|v| v * scale),
+                }),
+                ..Effects::NONE
+            }
+        };
+        self.fit_learned(GAS_TAUS_S.len(), &with, before_fit)
+    }
+
     /// Fit one candidate on the fit runs: its effects and gap, the form that
     /// held, the re-estimated parameters (`parameters` only) and whether
     /// they are plausible.
@@ -408,6 +480,7 @@ impl Fitter<'_> {
             EffectKind::HoseHysteresis => start.effects.hose_spectrum.is_some(),
             EffectKind::Friction => start.effects.friction_map.is_some(),
             EffectKind::Leakage => start.effects.leakage_map.is_some(),
+            EffectKind::AccumulatorThermal => start.effects.gas_relaxation.is_some(),
             EffectKind::SensorDelay => start.effects.sensor_filter.is_some(),
             EffectKind::SensorCalibration => start.effects.sensor_map.is_some(),
             _ => false,
@@ -455,15 +528,16 @@ pub fn estimate_params(est: &[Estimate]) -> BTreeMap<String, f64> {
 
 /// Whether to fit `kind`'s general family after its named form shrank the
 /// fit runs' gap by `named_fit_shrink`: the learned families of the hose
-/// wall and the seals (least-squares fits of five to seven values, some
-/// 60 replays) only where the named form shows the effect at least in part
-/// (10 %); the servo's envelope gates itself on the encoder's gap
-/// ([`prefit::servo_envelope`]); the sensors' families cost one replay.
+/// wall, the seals and the accumulator (least-squares fits of five to seven
+/// values, some 60 replays) only where the named form shows the effect at
+/// least in part (10 %); the servo's envelope gates itself on the encoder's
+/// gap ([`prefit::servo_envelope`]); the sensors' families cost one replay.
 fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
     match kind {
-        EffectKind::HoseHysteresis | EffectKind::Friction | EffectKind::Leakage => {
-            named_fit_shrink >= 0.1
-        }
+        EffectKind::HoseHysteresis
+        | EffectKind::Friction
+        | EffectKind::Leakage
+        | EffectKind::AccumulatorThermal => named_fit_shrink >= 0.1,
         _ => true,
     }
 }
@@ -483,6 +557,9 @@ fn general_form(kind: EffectKind) -> &'static str {
         EffectKind::Leakage => {
             "general: internal leakage of any shape over the pressure difference, plus a share growing with the pressure level"
         }
+        EffectKind::AccumulatorThermal => {
+            "general: the accumulator gas relaxing over six time constants (0.1 to 30 s)"
+        }
         EffectKind::SensorDelay => {
             "general: a sensor's lag of any shape (a non-negative impulse response over 0 to 32 ms)"
         }
@@ -500,7 +577,9 @@ fn general_form(kind: EffectKind) -> &'static str {
 /// general family each element's compliance, `c_m3pp_at_yield_<yield>_pa`;
 /// for `friction` and `leakage` in their general families the learned
 /// values at each knot, `force_n_at_<speed>_mmps` and `q_m3ps_at_<dp>_mpa`,
-/// and the pressure terms `n_per_mpa`, `g_m3pspa`;
+/// and the pressure terms `n_per_mpa`, `g_m3pspa`; for
+/// `accumulator_thermal` in its general family each relaxation's weight,
+/// `weight_at_tau_<tau>_s`;
 /// for `sensor_delay` in its general family the channel, the mean delay and
 /// each tap's weight, `weight_at_<delay>_ms`; for `sensor_calibration` in
 /// its general family the channel and the map's knots and readings,
@@ -533,6 +612,13 @@ pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
             m.insert(format!("q_m3ps_at_{:.2}_mpa", dp * 1e-6), q);
         }
         return m;
+    }
+    if let (EffectKind::AccumulatorThermal, Some(g)) = (kind, e.gas_relaxation) {
+        return GAS_TAUS_S
+            .iter()
+            .zip(g.weights)
+            .map(|(tau, w)| (format!("weight_at_tau_{tau}_s"), w))
+            .collect();
     }
     if let (EffectKind::SensorDelay, Some(f)) = (kind, e.sensor_filter) {
         let mut m = BTreeMap::from([

@@ -188,7 +188,7 @@ pub fn diagnose(
     let progress = Progress::candidates(opts.progress, EffectKind::ALL.len());
     let explains =
         |fit_after: f64, check_after: f64| policy::explains(n.fit, n.check, fit_after, check_after);
-    let ranked = fitter.rank(n.fit, n.check, &explains, &progress);
+    let mut ranked = fitter.rank(n.fit, n.check, &explains, &progress);
     progress.finish();
     // A second effect where the best single one leaves a gap beyond the noise.
     let pair = if policy::wants_pair(n.pooled, &ranked[0], opts.second_effect) {
@@ -197,6 +197,24 @@ pub fn diagnose(
         None
     };
     let decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
+    // The verdict's named form refined by its part's general family, where
+    // that holds clearly better on the check runs (not where a second
+    // effect is added: the pair was fitted with the named form).
+    if let Some(i) = decision.chosen {
+        let paired = decision.second.is_some_and(|s| s.significant);
+        if !paired {
+            let refined = fitter.refine(
+                &ranked[i],
+                n.fit,
+                n.check,
+                &explains,
+                &policy::general_refines,
+            );
+            if let Some(r) = refined {
+                ranked[i] = r;
+            }
+        }
+    }
     let c = conclude(&n, &ranked, pair.as_ref(), &decision);
     // The report's replays with the verdict's effects.
     let after = if c.effects.is_none() {

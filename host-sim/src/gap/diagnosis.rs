@@ -95,6 +95,23 @@ pub struct Candidate {
     /// `parameters` only: the re-estimated parameters with their intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub parameters: Option<Vec<Estimate>>,
+    /// Where the named form held but the general family of the same part
+    /// of the rig holds clearly better on the check runs and replaced it
+    /// (`params` are then the general family's): the named form's
+    /// parameters and shrinks, which an engineer reads more easily.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub named: Option<NamedForm>,
+}
+
+/// The named form of a candidate that its general family refined.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NamedForm {
+    /// Its fitted parameters, names with units.
+    pub params: BTreeMap<String, f64>,
+    /// Its shrink on the fit runs.
+    pub fit_shrink: f64,
+    /// Its shrink on the check runs.
+    pub check_shrink: f64,
 }
 
 /// A part of a run that carries the gap.

@@ -19,6 +19,24 @@ pub const SECOND_SHRINK: f64 = 0.3;
 /// the effect's gap ([`params_clearly_better`]). A named effect that holds
 /// about as well wins (a wrong bulk modulus must not absorb entrained air).
 pub const PARAMS_MARGIN: f64 = 0.1;
+/// A general family replaces the verdict's named form that held only when
+/// it leaves at most (1 - REFINE_MARGIN) times the named form's gap on the
+/// check runs ([`general_refines`]).
+pub const REFINE_MARGIN: f64 = 0.2;
+
+/// Whether the general family of the verdict's effect, which explains the
+/// gap and leaves `fit_after` and `check_after`, replaces its named form
+/// `named` that explains it too: the named form leaves a gap beyond the
+/// noise on the check runs (otherwise they cannot tell the two apart), and
+/// the general family leaves below (1 - [`REFINE_MARGIN`]) times it there
+/// and less on the fit runs. The verdict is decided before, on the named
+/// forms: a refinement changes how far the gap shrinks, never which effect
+/// is named.
+pub fn general_refines(named: &Candidate, fit_after: f64, check_after: f64) -> bool {
+    named.check_after >= NONE_GAP
+        && check_after < (1.0 - REFINE_MARGIN) * named.check_after
+        && fit_after < named.fit_after
+}
 
 /// Whether the `parameters` re-estimate `p` beats the named effect `e` when
 /// both explain the gap: it leaves the check runs below (1 -
@@ -54,6 +72,7 @@ fn pair_gaps(pair: Option<&PairFit>) -> Candidate {
         check_after,
         evals: 0,
         parameters: None,
+        named: None,
     }
 }
 
@@ -243,6 +262,7 @@ mod tests {
             check_after,
             evals: 1,
             parameters: None,
+            named: None,
         }
     }
 
@@ -258,5 +278,17 @@ mod tests {
         assert!(!params_clearly_better(&cand(0.75, 0.47), &cand(0.8, 0.45)));
         // ... but not where the effect leaves no more than clean runs show.
         assert!(!params_clearly_better(&cand(0.28, 0.47), &cand(0.45, 0.45)));
+    }
+
+    #[test]
+    fn a_general_family_refines_only_where_the_check_runs_tell() {
+        // Clearly lower on check runs that still show a gap.
+        assert!(general_refines(&cand(1.5, 2.0), 0.5, 1.5));
+        // Not clearly lower there.
+        assert!(!general_refines(&cand(1.5, 2.0), 0.5, 1.7));
+        // Lower on the check runs but not on the fit runs.
+        assert!(!general_refines(&cand(0.5, 2.0), 0.6, 1.0));
+        // The named form leaves the check runs within the noise.
+        assert!(!general_refines(&cand(1.5, 0.9), 0.5, 0.3));
     }
 }

@@ -10,9 +10,9 @@ use super::run::Run;
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
 use crate::model::effects::{
-    self, CalChannel, FrictionMap, HysteresisSpectrum, LeakageMap, SensorFilter, SensorMap,
-    ServoEnvelope, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, LEAK_DP_PA,
-    SPECTRUM_YIELDS_PA,
+    self, CalChannel, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap, SensorFilter,
+    SensorMap, ServoEnvelope, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS,
+    GAS_TAUS_S, LEAK_DP_PA, SPECTRUM_YIELDS_PA,
 };
 
 /// Why the report could not be written.
@@ -290,6 +290,29 @@ fn leakage_figure(path: &Path, l: &LeakageMap) -> Result<(), PlotError> {
     plot::save(path, &[panel], 900, 420)
 }
 
+/// The learned gas relaxation as the gas's effective polytropic index over
+/// the time after a step compression (on a log time axis, 10 ms to 100 s),
+/// beside the nominal index and the isothermal one.
+fn gas_figure(path: &Path, g: &GasRelaxation, n_poly: f64) -> Result<(), PlotError> {
+    let lg = |i: usize| -2.0 + 4.0 * i as f64 / 200.0;
+    let curve = (0..=200)
+        .map(|i| (lg(i), g.index_after(n_poly, 10f64.powf(lg(i)))))
+        .collect();
+    let flat = |v: f64| vec![(lg(0), v), (lg(200), v)];
+    let panel = Panel::new(
+        "accumulator_thermal, general family: the gas's index after a step compression",
+        "time after the step, log10(t / 1 s)",
+        "effective polytropic index",
+    )
+    .with(Series::line("learned", curve))
+    .with(Series::dashed(
+        format!("nominal (adiabatic, {n_poly})"),
+        flat(n_poly),
+    ))
+    .with(Series::dashed("isothermal (1)", flat(1.0)));
+    plot::save(path, &[panel], 900, 420)
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -335,6 +358,26 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
     }
     if let (Some(form), Some(sub)) = (&d.form, &d.subsystem) {
         let _ = writeln!(md, "Form that held: {form} (subsystem: {sub}).\n");
+    }
+    let named = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == d.verdict.name())
+        .and_then(|c| c.named.as_ref());
+    if let Some(n) = named {
+        let params: Vec<String> = n
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.4e}"))
+            .collect();
+        let _ = writeln!(
+            md,
+            "The named form, which the general family refined, fitted {} (fit shrink {:.0} %, \
+             check shrink {:.0} %).\n",
+            params.join(", "),
+            100.0 * n.fit_shrink,
+            100.0 * n.check_shrink
+        );
     }
     if let Some(h) = &details.effects.hose_spectrum {
         spectrum_figure(&dir.join("hose_spectrum.png"), h)?;
@@ -398,6 +441,23 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             "---|".repeat(LEAK_DP_PA.len() - 1),
             l.q_m3ps.map(|q| format!("{:.3}", q * 1e6)).join(" | "),
             l.g_m3pspa
+        );
+    }
+    if let Some(g) = &details.effects.gas_relaxation {
+        let n_poly = details.base.params().n_poly;
+        gas_figure(&dir.join("gas_relaxation.png"), g, n_poly)?;
+        let _ = writeln!(
+            md,
+            "## The accumulator gas's learned relaxation\n\n\
+             | time constant [s] | {} |\n|---|{}\n| weight | {} |\n\n\
+             A step compression meets the index {n_poly}; after 1 s it is {:.3}, after 10 s \
+             {:.3}, at length {:.3}.\n\n![gas relaxation](gas_relaxation.png)\n",
+            GAS_TAUS_S.map(|t| format!("{t}")).join(" | "),
+            "---|".repeat(GAS_TAUS_S.len()),
+            g.weights.map(|w| format!("{w:.3}")).join(" | "),
+            g.index_after(n_poly, 1.0),
+            g.index_after(n_poly, 10.0),
+            g.index_after(n_poly, f64::INFINITY),
         );
     }
     if let Some(f) = &details.effects.sensor_filter {

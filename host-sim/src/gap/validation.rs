@@ -25,8 +25,8 @@ use super::policy::NONE_GAP;
 use super::run::Run;
 use crate::io::runlog::RunLog;
 use crate::model::effects::{
-    CalChannel, EffectKind, Effects, HysteresisSpectrum, LeakageMap, SensorFilter, SensorMap,
-    ServoEnvelope,
+    CalChannel, EffectKind, Effects, GasRelaxation, HysteresisSpectrum, LeakageMap, SensorFilter,
+    SensorMap, ServoEnvelope,
 };
 use crate::model::plant::Plant;
 use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
@@ -147,6 +147,34 @@ pub fn cases() -> Vec<Case> {
             effects: Effects {
                 hose_spectrum: Some(HysteresisSpectrum {
                     c_m3pp: [1.5e-13, 0.0, 0.0, 0.0, 3e-13],
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            // Two heat paths of the accumulator gas (a fast one to a foam
+            // filling, a slow one to the shell) and a total beyond the
+            // thermal n - 1 (a creeping bladder): no single time constant.
+            name: "accumulator_thermal (two heat paths)".into(),
+            truth: vec![AccumulatorThermal],
+            effects: Effects {
+                gas_relaxation: Some(GasRelaxation {
+                    weights: [0.0, 0.25, 0.0, 0.0, 0.35, 0.0],
+                }),
+                ..Effects::NONE
+            },
+        },
+        Case {
+            // An accumulator whose gas spring gives more, and faster, than
+            // heat exchange alone allows: within 0.1 s its index falls from
+            // 1.4 to 0.8 (a bladder whose folds yield), then it creeps over
+            // half a minute. The named form relaxes by n - 1 = 0.4 at most,
+            // over one time constant.
+            name: "accumulator_thermal (yielding, creeping bladder)".into(),
+            truth: vec![AccumulatorThermal],
+            effects: Effects {
+                gas_relaxation: Some(GasRelaxation {
+                    weights: [0.6, 0.0, 0.0, 0.0, 0.0, 0.3],
                 }),
                 ..Effects::NONE
             },

@@ -19,6 +19,7 @@
 //! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa, no stuck share), each adding its compliance as far as it is engaged | `c_m3pp` (five compliances, learned) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
+//! | `accumulator_thermal`, general family ([`GasRelaxation`]) | the gas spring relaxing over six time constants (0.1 ... 30 s): with u = ln(V0/Vg), ds_k/dt = (w_k u - s_k)/tau_k and P_abs = P0_abs exp(n u - sum s_k); the index after a step compression falls from n by the weights of the elements that have relaxed | `weights` (six, learned, non-negative, sum at most 1) |
 //! | `sensor_delay`, general family ([`SensorFilter`]) | a lag of any shape on one of Xo, Xi, P1, P2: a non-negative impulse response over the delays [`FILTER_DELAYS_S`] (0 ... 32 ms), unit gain at rest | `channel`, `weights` (learned) |
 //! | `sensor_calibration`, general family ([`SensorMap`]) | a monotone static map of any shape on one of Xo, Xi, P1, P2: piecewise linear through six knots, extended linearly | `channel`, `knots_si`, `readings_si` (learned) |
 //! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
@@ -260,6 +261,57 @@ pub struct AccumulatorThermal {
 
 /// Ambient (and initial) gas temperature, K.
 pub const T_AMBIENT_K: f64 = 293.15;
+
+/// Time constants of the elements of a [`GasRelaxation`], s: half a decade
+/// apart from 0.1 s to 30 s.
+pub const GAS_TAUS_S: [f64; 6] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0];
+
+/// Largest sum of a [`GasRelaxation`]'s weights: the gas keeps a long-run
+/// polytropic index of at least `n_poly - 1` (0.4 on the nominal rig), so
+/// the accumulator never turns into a negative spring.
+pub const GAS_WEIGHT_SUM_MAX: f64 = 1.0;
+
+/// The general family of the accumulator (`accumulator_thermal` in any
+/// shape): the gas spring's stiffness relaxing over a spectrum of time
+/// constants (a Prony series of the gas). With `u = ln(V_gas0 / Vg)` the
+/// gas's log compression, element `k` carries a relaxed share `s_k` of the
+/// log pressure, `ds_k/dt = (w_k u - s_k) / tau_k` ([`GAS_TAUS_S`]), and the
+/// gas's absolute pressure is `P0_abs exp(n_poly u - sum_k s_k)`. A fast
+/// compression meets the nominal (adiabatic) index; held, the index falls by
+/// the weights of the elements that have relaxed ([`Self::index_after`]).
+/// One element of weight `n_poly - 1` is the named form's thermal
+/// relaxation to first order in the temperature; several are heat paths of
+/// different speeds (gas to a foam filling, to the shell, to the mount); a
+/// total above `n_poly - 1` is a bladder or membrane that creeps.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GasRelaxation {
+    /// Weight of each element, dimensionless (non-negative, sum at most
+    /// [`GAS_WEIGHT_SUM_MAX`]).
+    pub weights: [f64; 6],
+}
+
+impl GasRelaxation {
+    /// The gas's effective polytropic index a time `t_s` after a step
+    /// compression from rest, on a rig whose nominal index is `n_poly`:
+    /// `n_poly - sum_k w_k (1 - exp(-t / tau_k))`.
+    pub fn index_after(&self, n_poly: f64, t_s: f64) -> f64 {
+        n_poly
+            - self
+                .weights
+                .iter()
+                .zip(GAS_TAUS_S)
+                .map(|(w, tau)| w * (1.0 - (-t_s / tau).exp()))
+                .sum::<f64>()
+    }
+
+    /// Whether the family is usable: every weight finite and non-negative,
+    /// their sum at most [`GAS_WEIGHT_SUM_MAX`].
+    pub fn is_valid(&self) -> bool {
+        self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && self.weights.iter().sum::<f64>() <= GAS_WEIGHT_SUM_MAX
+    }
+}
 
 /// The channel a [`SensorCalibration`] acts on.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -704,6 +756,10 @@ pub struct Effects {
     pub hose_spectrum: Option<HysteresisSpectrum>,
     /// `accumulator_thermal`.
     pub accumulator_thermal: Option<AccumulatorThermal>,
+    /// `accumulator_thermal` in its general family (exclusive with the named
+    /// form).
+    #[serde(default)]
+    pub gas_relaxation: Option<GasRelaxation>,
     /// `sensor_calibration`.
     pub sensor_calibration: Option<SensorCalibration>,
     /// `sensor_calibration` in its general family (exclusive with the named form).
@@ -917,6 +973,7 @@ impl Effects {
         hose_hysteresis: None,
         hose_spectrum: None,
         accumulator_thermal: None,
+        gas_relaxation: None,
         sensor_calibration: None,
         sensor_map: None,
         parameters: None,
@@ -1178,6 +1235,13 @@ impl Effects {
                 self.hose_hysteresis.is_some(),
                 "the named form and the hysteresis spectrum exclude each other",
                 "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
+            ),
+            (
+                EffectKind::AccumulatorThermal,
+                self.gas_relaxation.map(|g| g.is_valid()),
+                self.accumulator_thermal.is_some(),
+                "the named form and the gas relaxation exclude each other",
+                "gas_relaxation: weights finite, >= 0 and summing to at most 1",
             ),
             (
                 EffectKind::Leakage,

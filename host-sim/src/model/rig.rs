@@ -19,7 +19,9 @@
 //!   h2) adds its compliance to the line's capacitance while engaged, and
 //!   holds a share of the hose wall's compliance while not;
 //! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
-//!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0);
+//!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0); in its general family six
+//!   relaxed shares s_k of the log pressure (extra states) give
+//!   P_acc,abs = P0_abs exp(n ln(V0/Vg) - sum s_k);
 //! * `sensor_delay` and `sensor_calibration` (named or general) act on the
 //!   readings, not here
 //!   (see [`crate::model::sensors`]);
@@ -36,8 +38,11 @@ use crate::model::plant::{HoseModel, Plant, PressureRates, State, N_STATES};
 /// Elements of the hysteresis spectrum per line.
 const NS: usize = effects::SPECTRUM_YIELDS_PA.len();
 
+/// Elements of the gas relaxation.
+const NG: usize = effects::GAS_TAUS_S.len();
+
 /// Number of extra states the effects carry.
-pub const N_EXT: usize = 4 + 2 * NS;
+pub const N_EXT: usize = 4 + 2 * NS + NG;
 
 /// Extra states of the effects (unused ones stay at their initial value).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -52,6 +57,9 @@ pub struct Ext {
     /// Hysteretic pressures of the spectrum's elements per line
     /// (`hose_hysteresis`, general family), Pa.
     pub hs_pa: [[f64; NS]; 2],
+    /// Relaxed shares of the accumulator gas's log pressure
+    /// (`accumulator_thermal`, general family), dimensionless.
+    pub sg: [f64; NG],
 }
 
 impl Ext {
@@ -59,7 +67,8 @@ impl Ext {
         let mut a = [0.0; N_EXT];
         a[..4].copy_from_slice(&[self.xp_m, self.h_pa[0], self.h_pa[1], self.t_gas_k]);
         a[4..4 + NS].copy_from_slice(&self.hs_pa[0]);
-        a[4 + NS..].copy_from_slice(&self.hs_pa[1]);
+        a[4 + NS..4 + 2 * NS].copy_from_slice(&self.hs_pa[1]);
+        a[4 + 2 * NS..].copy_from_slice(&self.sg);
         a
     }
 
@@ -72,6 +81,7 @@ impl Ext {
                 std::array::from_fn(|i| a[4 + i]),
                 std::array::from_fn(|i| a[4 + NS + i]),
             ],
+            sg: std::array::from_fn(|i| a[4 + 2 * NS + i]),
         }
     }
 }
@@ -191,6 +201,7 @@ impl Rig {
                 h_pa: [0.0, 0.0],
                 t_gas_k: T_AMBIENT_K,
                 hs_pa: [[0.0; NS]; 2],
+                sg: [0.0; NG],
             },
         }
     }
@@ -269,6 +280,19 @@ impl Rig {
             dt_gas = -(p.n_poly - 1.0) * s.ext.t_gas_k * qa / x.vg_m3
                 + (T_AMBIENT_K - s.ext.t_gas_k) / th.tau_s;
         }
+        let mut dsg = [0.0; NG];
+        if let Some(g) = &e.gas_relaxation {
+            // The nominal law with the relaxed shares taken off the log
+            // pressure: exactly the plant's with every share at zero.
+            let u = libm::log(p.v_gas0_m3 / x.vg_m3);
+            let relaxed: f64 = s.ext.sg.iter().sum();
+            let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
+            let pacc = p_abs0 * libm::exp(p.n_poly * u - relaxed) - p.p_atm_pa;
+            qa = p.g_acc_m3pspa * (pacc - x.p2_pa);
+            for (k, d) in dsg.iter_mut().enumerate() {
+                *d = (g.weights[k] * u - s.ext.sg[k]) / effects::GAS_TAUS_S[k];
+            }
+        }
         let ql = e
             .leakage
             .as_ref()
@@ -308,7 +332,8 @@ impl Rig {
         let mut de = [0.0; N_EXT];
         de[..4].copy_from_slice(&[vp, dh.h[0], dh.h[1], dt_gas]);
         de[4..4 + NS].copy_from_slice(&dh.hs[0]);
-        de[4 + NS..].copy_from_slice(&dh.hs[1]);
+        de[4 + NS..4 + 2 * NS].copy_from_slice(&dh.hs[1]);
+        de[4 + 2 * NS..].copy_from_slice(&dsg);
         (d, de)
     }
 
@@ -594,6 +619,69 @@ mod tests {
             c_m3pp: [1e-13; NS],
         });
         assert!(Rig::new(Plant::nominal(), e).is_err());
+    }
+
+    /// The gas relaxation: zero weights are the nominal rig to rounding; one
+    /// element of weight n_poly - 1 is the named thermal form of the same
+    /// time constant to first order in the temperature (within 10 % of the
+    /// named form's departure from the nominal rig); two elements of other
+    /// time constants differ from both; both forms at once are refused.
+    #[test]
+    fn gas_relaxation_of_one_element_is_the_named_thermal_form() {
+        let with = |w: [f64; NG]| {
+            let e = Effects {
+                gas_relaxation: Some(effects::GasRelaxation { weights: w }),
+                ..Effects::NONE
+            };
+            run(&Rig::new(Plant::nominal(), e).unwrap())
+        };
+        let dev = |a: &[RigState], b: &[RigState]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| {
+                    (x.x.xo_m - y.x.xo_m).abs() / 1e-6 + (x.x.p2_pa - y.x.p2_pa).abs() / 1e3
+                })
+                .fold(0.0, f64::max)
+        };
+        let base = run(&rig(None));
+        assert!(dev(&with([0.0; NG]), &base) < 1e-6);
+        let n1 = Plant::nominal().params().n_poly - 1.0;
+        let one = with([0.0, 0.0, n1, 0.0, 0.0, 0.0]);
+        let named = run(&rig(Some((EffectKind::AccumulatorThermal, &[1.0]))));
+        let effect = dev(&named, &base);
+        assert!(effect > 5.0, "{effect}");
+        assert!(
+            dev(&one, &named) < 0.1 * effect,
+            "{} vs {effect}",
+            dev(&one, &named)
+        );
+        let two = with([0.2, 0.0, 0.0, 0.0, 0.2, 0.0]);
+        assert!(dev(&two, &named) > 0.2 * effect && dev(&two, &base) > 0.2 * effect);
+        assert!(two.iter().all(|s| s.is_finite()));
+        let mut e = Effects::NONE;
+        e.set(EffectKind::AccumulatorThermal, Some(&[1.0]));
+        e.gas_relaxation = Some(effects::GasRelaxation { weights: [0.1; NG] });
+        assert!(Rig::new(Plant::nominal(), e).is_err());
+        // Weights that sum beyond the bound are refused too.
+        let e = Effects {
+            gas_relaxation: Some(effects::GasRelaxation { weights: [0.2; NG] }),
+            ..Effects::NONE
+        };
+        assert!(Rig::new(Plant::nominal(), e).is_err());
+    }
+
+    /// The index a step compression meets: the nominal one at once, falling
+    /// by each element's weight over its time constant.
+    #[test]
+    fn gas_index_falls_by_the_relaxed_weights() {
+        let g = effects::GasRelaxation {
+            weights: [0.0, 0.1, 0.0, 0.3, 0.0, 0.0],
+        };
+        assert_eq!(g.index_after(1.4, 0.0), 1.4);
+        assert!((g.index_after(1.4, 1e4) - 1.0).abs() < 1e-12);
+        let at_tau = g.index_after(1.4, 3.0);
+        let want = 1.4 - 0.1 * (1.0 - (-10.0_f64).exp()) - 0.3 * (1.0 - (-1.0_f64).exp());
+        assert!((at_tau - want).abs() < 1e-12);
     }
 
     #[test]

@@ -244,6 +244,9 @@ pub fn log_meta_with(
             f.n_per_mpa
         ));
     }
+    if let Some(g) = &spec.effects.gas_relaxation {
+        effects.push(format!("gas_relaxation:weights=[{}]", list(&g.weights)));
+    }
     if let Some(f) = &spec.effects.sensor_filter {
         effects.push(format!(
             "sensor_filter:channel={},weights=[{}]",
