@@ -47,6 +47,7 @@ fn gap_validation_suite() {
         "sensor_delay (encoder",
         "sensor_calibration (LVDT wavy",
         "accumulator_thermal (yielding",
+        "sensor_calibration (force sensor",
     ] {
         let o = out
             .iter()

@@ -18,7 +18,7 @@ use super::replay::Replay;
 use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
-    EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
+    CalChannel, EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
     ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, GAS_TAUS_S, GAS_WEIGHT_SUM_MAX,
     LEAK_DP_PA, SPECTRUM_YIELDS_PA,
 };
@@ -161,7 +161,13 @@ impl Fitter<'_> {
                 // family of the same part of the rig.
                 let named_fit = Shrink::new(before_fit, f.gap).shrink;
                 if !explains(f.gap, after_check) && worth_general(k, named_fit) {
-                    if let Some((g, g_check)) = self.fit_general(k, before_fit) {
+                    // The force sensor's map only where the named map found
+                    // the force sensor the best channel.
+                    let on_force = f
+                        .effects
+                        .sensor_calibration
+                        .is_some_and(|c| c.channel == CalChannel::Ft);
+                    if let Some((g, g_check)) = self.fit_general(k, on_force, before_fit) {
                         if explains(g.gap, g_check) {
                             form = format!(
                                 "{} (the named form: fit shrink {:.0} %, check shrink {:.0} %)",
@@ -226,10 +232,13 @@ impl Fitter<'_> {
         explains: &dyn Fn(f64, f64) -> bool,
         refines: &dyn Fn(&Candidate, f64, f64) -> bool,
     ) -> Option<CandidateFit> {
-        if c.general || !EffectKind::CATALOGUE.contains(&c.kind) {
+        if c.general || c.kind == EffectKind::Parameters {
             return None;
         }
-        let (g, g_check) = self.fit_general(c.kind, before_fit)?;
+        // A calibration verdict: the force sensor's map is tried whatever
+        // channel the named map took (a force error shows in the pressures
+        // first, and a pressure map can hold in its place).
+        let (g, g_check) = self.fit_general(c.kind, true, before_fit)?;
         if !(explains(g.gap, g_check) && refines(&c.candidate, g.gap, g_check)) {
             return None;
         }
@@ -260,8 +269,15 @@ impl Fitter<'_> {
     /// The general family of `k`'s part of the rig fitted on the fit runs
     /// (whose nominal gap is `before_fit`), with its gap there and on the
     /// check runs; `None` where `k` has no general family or it fits no
-    /// better than the nominal model.
-    fn fit_general(&self, k: EffectKind, before_fit: f64) -> Option<(Fitted, f64)> {
+    /// better than the nominal model. `force_map`: for `sensor_calibration`,
+    /// also the force sensor's map (fitted through the replays, some 30 of
+    /// them; the other sensors' maps cost one).
+    fn fit_general(
+        &self,
+        k: EffectKind,
+        force_map: bool,
+        before_fit: f64,
+    ) -> Option<(Fitted, f64)> {
         let (effects, gap_fit) = match k {
             EffectKind::MotorLimit => {
                 let (env, _, _) = prefit::servo_envelope(self.fit, self.base)?;
@@ -292,7 +308,14 @@ impl Fitter<'_> {
                     self.base,
                     self.dt_s,
                     before_fit,
-                )?;
+                );
+                let force = force_map
+                    .then(|| {
+                        let stop = f.map_or(before_fit, |f| f.gap);
+                        sensor_family::fit_force_map(self.fit, self.base, self.dt_s, stop)
+                    })
+                    .flatten();
+                let f = force.or(f)?;
                 (f.effects, f.gap)
             }
             _ => return None,

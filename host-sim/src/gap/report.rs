@@ -222,7 +222,14 @@ fn map_figure(path: &Path, m: &SensorMap, details: &Details) -> Result<(), PlotE
         })
         .collect();
     let mut points = Vec::new();
-    for (run, sim) in details.fit.iter().zip(&details.before) {
+    // The force sensor's reading is the replay's input: no replayed values
+    // to set it against.
+    let replayed = if m.channel == CalChannel::Ft {
+        &[][..]
+    } else {
+        &details.before[..]
+    };
+    for (run, sim) in details.fit.iter().zip(replayed) {
         let y = measured(&run.log)[c];
         for (k, v) in sim.ch[c].iter().enumerate().step_by(BLOCK) {
             if v.is_finite() && y[k].is_finite() {

@@ -11,9 +11,11 @@
 //!   the recorded channel against the replay.
 //!
 //! Both act on the readings only, so the nominal replays of the fit runs
-//! (the diagnosis makes them once) give every channel's design matrix; the channel whose fitted family
-//! leaves the smallest gap on the fit runs is the candidate. The force
-//! sensor is left out of both: its reading drives the replay's load.
+//! (the diagnosis makes them once) give every channel's design matrix; the
+//! channel whose fitted family leaves the smallest gap on the fit runs is
+//! the candidate. The force sensor's reading drives the replay's load, so
+//! its map is fitted through the replays instead ([`fit_force_map`]), and
+//! it has no learned lag.
 
 use super::lsq;
 use super::measure::gap_bounded;
@@ -251,6 +253,82 @@ pub fn fit_map(
         }),
     )
 }
+
+/// `sensor_calibration`'s general family on the force sensor: a monotone
+/// map through six knots over the recorded load's 1st to 99th percentile on
+/// the fit runs `runs` (at least 40 N apart at the ends), fitted through the
+/// replays by Levenberg-Marquardt (the map's inverse gives the load the
+/// replay applies): the reading at the first knot as an offset (in units of
+/// 10 N, within +-400 N) and each segment's slope as a factor on the
+/// identity's (in units of 5 %, from 0.2 to 3), so that every step keeps
+/// the map monotone; from the identity, at most [`FORCE_MAP_ITERS`]
+/// Jacobians. `None` when the load barely moves or the map does not lower
+/// the nominal gap `before_fit`.
+pub fn fit_force_map(runs: &[Run], base: &Plant, dt_s: f64, before_fit: f64) -> Option<FamilyFit> {
+    let mut loads: Vec<f64> = runs
+        .iter()
+        .flat_map(|r| r.load.iter().copied())
+        .filter(|v| v.is_finite())
+        .collect();
+    if loads.is_empty() {
+        return None;
+    }
+    loads.sort_by(f64::total_cmp);
+    let at = |q: f64| loads[((loads.len() - 1) as f64 * q).round() as usize];
+    let (lo, hi) = (at(0.01), at(0.99));
+    if hi - lo < 0.01 * CalChannel::Ft.span() {
+        return None;
+    }
+    let knots: [f64; MAP_KNOTS] =
+        std::array::from_fn(|i| lo + (hi - lo) * i as f64 / (MAP_KNOTS - 1) as f64);
+    let map = |x: &[f64]| {
+        let mut readings = [0.0; MAP_KNOTS];
+        readings[0] = knots[0] + 10.0 * x[0];
+        for i in 1..MAP_KNOTS {
+            let slope = (1.0 + 0.05 * x[i]).max(0.2);
+            readings[i] = readings[i - 1] + slope * (knots[i] - knots[i - 1]);
+        }
+        Effects {
+            sensor_map: Some(SensorMap {
+                channel: CalChannel::Ft,
+                knots_si: knots,
+                readings_si: readings,
+            }),
+            ..Effects::NONE
+        }
+    };
+    // Loads often sit at a few levels, which pin the map only there: the
+    // slopes in between are held together by a penalty on their changes
+    // (a kink of 5 % costs FORCE_MAP_SMOOTH of the noise's sum of squares).
+    let w = (FORCE_MAP_SMOOTH * lsq::noise_floor(runs)).sqrt();
+    let f = |x: &[f64]| {
+        let mut r = lsq::residuals(runs, base, &map(x), dt_s)?;
+        r.extend(x[1..].windows(2).map(|p| w * (p[1] - p[0])));
+        Some(r)
+    };
+    let mut lo_x = [-16.0; MAP_KNOTS];
+    lo_x[0] = -40.0;
+    let mut hi_x = [40.0; MAP_KNOTS];
+    hi_x[0] = 40.0;
+    let r = lsq::levenberg_marquardt(
+        &f,
+        &[0.0; MAP_KNOTS],
+        None,
+        &[0.5; MAP_KNOTS],
+        &lo_x,
+        &hi_x,
+        FORCE_MAP_ITERS,
+    )?;
+    best_channel(runs, base, dt_s, before_fit, std::iter::once(map(&r.x)))
+}
+
+/// Jacobians of the force map's fit.
+const FORCE_MAP_ITERS: usize = 5;
+
+/// Weight of the force map's smoothness penalty: the share of the noise's
+/// expected sum of squares ([`lsq::noise_floor`]) a change of 5 % between
+/// neighbouring slopes costs.
+const FORCE_MAP_SMOOTH: f64 = 0.1;
 
 /// The piecewise-linear map of channel `c` (recorded against replayed);
 /// `None` when the channel barely moves (a range under 1 % of its span) or

@@ -219,6 +219,21 @@ pub fn cases() -> Vec<Case> {
                 ..Effects::NONE
             },
         },
+        Case {
+            // A load cell whose reading falls behind the load as it rises:
+            // 8 % short at 1000 N, quadratic in the load (the named force
+            // map is affine).
+            name: "sensor_calibration (force sensor, 8 % short at 1000 N)".into(),
+            truth: vec![SensorCalibration],
+            effects: Effects {
+                sensor_map: Some(SensorMap {
+                    channel: CalChannel::Ft,
+                    knots_si: [-200.0, 200.0, 400.0, 600.0, 800.0, 1000.0],
+                    readings_si: [-203.2, 196.8, 387.2, 571.2, 748.8, 920.0],
+                }),
+                ..Effects::NONE
+            },
+        },
         // channel (0 xo, 1 xi, 2 p1, 3 p2, 4 ft), gain, offset (SI), quad.
         case(
             "sensor_calibration: LVDT gain 1.03",

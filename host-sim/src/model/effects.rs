@@ -21,7 +21,7 @@
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
 //! | `accumulator_thermal`, general family ([`GasRelaxation`]) | the gas spring relaxing over six time constants (0.1 ... 30 s): with u = ln(V0/Vg), ds_k/dt = (w_k u - s_k)/tau_k and P_abs = P0_abs exp(n u - sum s_k); the index after a step compression falls from n by the weights of the elements that have relaxed | `weights` (six, learned, non-negative, sum at most 1) |
 //! | `sensor_delay`, general family ([`SensorFilter`]) | a lag of any shape on one of Xo, Xi, P1, P2: a non-negative impulse response over the delays [`FILTER_DELAYS_S`] (0 ... 32 ms), unit gain at rest | `channel`, `weights` (learned) |
-//! | `sensor_calibration`, general family ([`SensorMap`]) | a monotone static map of any shape on one of Xo, Xi, P1, P2: piecewise linear through six knots, extended linearly | `channel`, `knots_si`, `readings_si` (learned) |
+//! | `sensor_calibration`, general family ([`SensorMap`]) | a monotone static map of any shape on one of Xo, Xi, P1, P2, Ft: piecewise linear through six knots, extended linearly | `channel`, `knots_si`, `readings_si` (learned) |
 //! | `sensor_calibration` | one sensor's static map from the true value v to the recorded one: offset + gain v + quad v^2 / span (span: the channel's full scale, [`CalChannel::span`]) | `channel` (0 xo_m, 1 xi_m, 2 p1_pa, 3 p2_pa, 4 ft_n), `gain_1` (typ. 1), `offset_si` (SI unit of the channel, typ. 0), `quad_1` (typ. 0) |
 //! | `parameters` | the rig's nominal parameters off by ratios ([`ParameterRatios`]): the plant is built with them ([`ParameterRatios::apply`]) | `m_kg_ratio`, `beta_e_pa_ratio`, `hose_c_ratio` (the hose wall's three compliances), `c_visc_ratio`, `tau_m_ratio`, `p_acc0_ratio`, `aa_ratio` (both actuating-piston areas); all typ. 1 |
 //!
@@ -572,13 +572,13 @@ impl SensorFilter {
 pub const MAP_KNOTS: usize = 6;
 
 /// The general family of `sensor_calibration` (a static map of any
-/// monotone shape on one of the LVDT, the encoder and the pressures): the
+/// monotone shape on one of the sensors): the
 /// channel records the piecewise-linear interpolation of `(knots_si,
 /// readings_si)` at its true value, extended linearly beyond the end knots.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorMap {
-    /// The sensor (not the force sensor, whose reading drives the load).
+    /// The sensor.
     pub channel: CalChannel,
     /// True values at the knots, SI (strictly increasing).
     pub knots_si: [f64; MAP_KNOTS],
@@ -606,17 +606,16 @@ impl SensorMap {
         pwl(&self.readings_si, &self.knots_si, y)
     }
 
-    /// Whether the map is usable: a channel other than the force sensor,
-    /// knots and readings finite and strictly increasing (a monotone map,
-    /// so that a reading names one true value), every reading within one
-    /// span of its knot.
+    /// Whether the map is usable: knots and readings finite and strictly
+    /// increasing (a monotone map, so that a reading names one true value),
+    /// every reading within one span of its knot. On the force sensor the
+    /// replay applies the true load the map's inverse gives of the reading.
     pub fn is_valid(&self) -> bool {
         let rising = |v: &[f64; MAP_KNOTS]| {
             v.iter().all(|x| x.is_finite()) && v.windows(2).all(|w| w[1] > w[0])
         };
         let span = self.channel.span();
-        self.channel != CalChannel::Ft
-            && rising(&self.knots_si)
+        rising(&self.knots_si)
             && rising(&self.readings_si)
             && self
                 .knots_si
@@ -1270,7 +1269,7 @@ impl Effects {
                 self.sensor_map.map(|m| m.is_valid()),
                 self.sensor_calibration.is_some(),
                 "the named form and the sensor map exclude each other",
-                "sensor_map: channel xo_m, xi_m, p1_pa or p2_pa, knots_si and readings_si \
+                "sensor_map: knots_si and readings_si \
                  strictly increasing, each reading within the channel's span of its knot",
             ),
         ];
