@@ -32,8 +32,10 @@
 //! * every move: the servo speed limit `|d_j| <= v_max Ts` (hard);
 //! * the first move, whose first period is applied: the stroke
 //!   `X_min <= u + L_1 d_1 <= X_max` (hard) and the acceleration limit
-//!   `|d_1 - d_prev| <= a_max Ts^2` (soft: where it would contradict the hard
-//!   bounds it gives way to them, by the least violation);
+//!   `|d_1 - d_prev| <= s a_max Ts^2` (soft: where it would contradict the
+//!   hard bounds it gives way to them, by the least violation); its share
+//!   in force `s` starts at 1 and backs off while the moves ring on a rig
+//!   whose resonance the full limit excites (`Cmpc::watch_ringing`);
 //! * the later moves: `d_j` within `(X_max - u - L_1 max(d_1)) / (L_2 + L_3)`
 //!   and the lower counterpart, a sufficient condition for every predicted
 //!   position to stay inside the stroke.
@@ -138,29 +140,23 @@ impl CmpcParams {
         let span: usize = self.blocks.iter().sum();
         let positive = |v: f64| v.is_finite() && v > 0.0;
         let share = |v: f64| (0.0..=1.0).contains(&v);
-        let checks = [
-            (
-                self.blocks.iter().all(|&l| (1..=MAX_HORIZON).contains(&l)),
-                DesignError::ControlHorizon,
-            ),
-            (
-                (span..=MAX_HORIZON).contains(&self.np) && self.np > 0,
-                DesignError::PredictionHorizon,
-            ),
-            (positive(self.ts_s), DesignError::SampleTime),
-            (positive(self.rw), DesignError::InputWeight),
-            (
-                positive(self.a_max_mps2)
-                    && share(self.load_ff)
-                    && share(self.preview)
-                    && share(self.comp_ff),
-                DesignError::Constraint,
-            ),
-        ];
-        match checks.iter().find(|(ok, _)| !ok) {
-            Some(&(_, e)) => Err(e),
-            None => Ok(()),
+        if !self.blocks.iter().all(|&l| (1..=MAX_HORIZON).contains(&l)) {
+            return Err(DesignError::ControlHorizon);
         }
+        if !(span..=MAX_HORIZON).contains(&self.np) {
+            return Err(DesignError::PredictionHorizon);
+        }
+        if !positive(self.ts_s) {
+            return Err(DesignError::SampleTime);
+        }
+        if !positive(self.rw) {
+            return Err(DesignError::InputWeight);
+        }
+        let shares = share(self.load_ff) && share(self.preview) && share(self.comp_ff);
+        if !(positive(self.a_max_mps2) && shares) {
+            return Err(DesignError::Constraint);
+        }
+        Ok(())
     }
 }
 
@@ -623,7 +619,30 @@ pub struct Cmpc {
     pub ft0_n: f32,
     /// Compliance feedforward: a finite load has been read.
     pub ff_started: bool,
+    /// Share of the acceleration limit in force (1 at the start; lowered
+    /// while the moves ring, [`Cmpc::tick`]).
+    pub a_scale: f32,
+    /// Ringing: the sign of the last change of the increment at the
+    /// acceleration limit.
+    pub ring_sign: i8,
+    /// Ringing: reversals at the limit, each within [`RING_GAP`] of the last.
+    pub ring_count: u8,
+    /// Ringing: MPC ticks since a change of the increment was last at the
+    /// acceleration limit.
+    pub ring_age: u8,
 }
+
+/// Ringing: longest gap, in MPC ticks, between two changes of the increment
+/// at the acceleration limit of opposite signs that still counts them as
+/// one oscillation (80 ms at 10 ms).
+pub const RING_GAP: u8 = 8;
+/// Ringing: reversals at the acceleration limit (three periods of the
+/// oscillation) after which the limit backs off.
+pub const RING_SWINGS: u8 = 6;
+/// Ringing: the factor the acceleration limit backs off by.
+pub const RING_BACKOFF: f32 = 0.8;
+/// Ringing: the smallest share of the acceleration limit.
+pub const A_SCALE_MIN: f32 = 0.4;
 
 /// What one constrained MPC tick reads.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -646,6 +665,7 @@ impl Cmpc {
     pub fn new(u0_m: f32) -> Self {
         Self {
             u_m: u0_m,
+            a_scale: 1.0,
             ..Self::default()
         }
     }
@@ -659,9 +679,11 @@ impl Cmpc {
         // first period is, too).
         let hard_lo = max(-v, min((lim.x_min_m - u) / g.first_periods, 0.0));
         let hard_hi = min(v, max((lim.x_max_m - u) / g.first_periods, 0.0));
-        // The soft acceleration limit gives way to the hard bounds.
-        let lo1 = clamp(self.du_prev_m - g.dd_max_m, hard_lo, hard_hi);
-        let hi1 = clamp(self.du_prev_m + g.dd_max_m, hard_lo, hard_hi);
+        // The soft acceleration limit (its share in force) gives way to the
+        // hard bounds.
+        let dd = g.dd_max_m * self.a_scale;
+        let lo1 = clamp(self.du_prev_m - dd, hard_lo, hard_hi);
+        let hi1 = clamp(self.du_prev_m + dd, hard_lo, hard_hi);
         let reach_up = g.first_periods * max(hi1, 0.0);
         let reach_down = g.first_periods * min(lo1, 0.0);
         let up = (lim.x_max_m - u - reach_up) / g.later_periods;
@@ -728,6 +750,7 @@ impl Cmpc {
             lim.x_max_m - self.u_ff_m,
         );
         let du = u_new - self.u_m;
+        self.watch_ringing(g, du - self.du_prev_m);
         self.x_prev = x_now;
         self.du_prev_m = du;
         self.r_prev_m = [input.r_m, self.r_prev_m[0]];
@@ -739,6 +762,40 @@ impl Cmpc {
             v_cmd_mps: self.v_mpc_mps,
             saturated: sol.constrained,
         }
+    }
+
+    /// The acceleration limit backs off while the moves ring: a rig whose
+    /// hydraulic resonance lies lower than the design's (a smaller actuating
+    /// area, a softer hose, a heavier load) is driven into a limit cycle by
+    /// moves that reverse at the acceleration limit. `dd_m` is this tick's
+    /// change of the increment; at the limit in force (to 1 %) and opposite
+    /// in sign to the last such change, within [`RING_GAP`] ticks of it, it
+    /// counts one reversal; [`RING_SWINGS`] of them in a row lower the share
+    /// of the limit by [`RING_BACKOFF`], down to [`A_SCALE_MIN`]. The share
+    /// never rises again in a run (a new controller starts at 1): a limit
+    /// cycle is a property of the rig, not a passing event. (Reversals
+    /// between the speed or stroke bounds do not count: on rigs with a low
+    /// loop gain they are the controller working, and backing off there
+    /// made the tracking worse.)
+    fn watch_ringing(&mut self, g: &CmpcGains, dd_m: f32) {
+        self.ring_age = self.ring_age.saturating_add(1);
+        if dd_m.abs() < 0.99 * g.dd_max_m * self.a_scale {
+            return;
+        }
+        let sign = if dd_m > 0.0 { 1 } else { -1 };
+        if sign != self.ring_sign {
+            self.ring_count = if self.ring_age <= RING_GAP {
+                self.ring_count + 1
+            } else {
+                1
+            };
+            self.ring_sign = sign;
+            if self.ring_count >= RING_SWINGS {
+                self.a_scale = max(self.a_scale * RING_BACKOFF, A_SCALE_MIN);
+                self.ring_count = 0;
+            }
+        }
+        self.ring_age = 0;
     }
 
     /// One base tick of the compliance feedforward (module documentation): the
@@ -788,5 +845,79 @@ fn min64(a: f64, b: f64) -> f64 {
         a
     } else {
         b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gains() -> CmpcGains {
+        let p = PlantParams::NOMINAL;
+        CmpcGains::design(&p, CmpcParams::LIMIT, &Limits::from_plant(&p), 1e-3).unwrap()
+    }
+
+    /// Feed `watch_ringing` `n` changes of the increment at the limit in
+    /// force, alternating in sign (the first opposite to the last one fed)
+    /// every `every` ticks (the ticks between are quiet); the share of the
+    /// limit afterwards.
+    fn ring(c: &mut Cmpc, g: &CmpcGains, every: usize, n: usize) -> f32 {
+        // Opposite to the last reversal counted.
+        let mut sign = if c.ring_sign > 0 { -1.0 } else { 1.0 };
+        for _ in 0..n {
+            c.watch_ringing(g, sign * g.dd_max_m * c.a_scale);
+            for _ in 1..every {
+                c.watch_ringing(g, 0.0);
+            }
+            sign = -sign;
+        }
+        c.a_scale
+    }
+
+    #[test]
+    fn the_acceleration_limit_backs_off_while_the_moves_ring() {
+        let g = gains();
+        let gap = usize::from(RING_GAP);
+        let swings = usize::from(RING_SWINGS);
+        // Reversals within the gap: one back-off per RING_SWINGS of them,
+        // down to the floor and no further.
+        let mut c = Cmpc::new(0.0);
+        assert_eq!(c.a_scale, 1.0);
+        assert_eq!(ring(&mut c, &g, gap, swings - 1), 1.0);
+        assert_eq!(ring(&mut c, &g, gap, 1), RING_BACKOFF);
+        assert_eq!(ring(&mut c, &g, 2, 100 * swings), A_SCALE_MIN);
+        // Reversals further apart than the gap are a slow swing, not ringing.
+        let mut c = Cmpc::new(0.0);
+        assert_eq!(ring(&mut c, &g, gap + 2, 10 * swings), 1.0);
+        // Moves below the limit in force never count.
+        let mut c = Cmpc::new(0.0);
+        for k in 0..1000 {
+            let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+            c.watch_ringing(&g, sign * 0.98 * g.dd_max_m);
+        }
+        assert_eq!(c.a_scale, 1.0);
+        // Changes at the limit of one sign (an acceleration held) never count.
+        let mut c = Cmpc::new(0.0);
+        for _ in 0..1000 {
+            c.watch_ringing(&g, g.dd_max_m);
+        }
+        assert_eq!(c.a_scale, 1.0);
+    }
+
+    /// The box of the first move narrows with the share in force.
+    #[test]
+    fn the_share_in_force_narrows_the_acceleration_bound() {
+        let g = gains();
+        let p = PlantParams::NOMINAL;
+        let lim = Limits::from_plant(&p);
+        let mut c = Cmpc::new(0.05);
+        c.du_prev_m = 1e-4;
+        let (lo, hi) = c.bounds(&g, &lim);
+        c.a_scale = 0.5;
+        let (lo2, hi2) = c.bounds(&g, &lim);
+        assert!((hi[0] - c.du_prev_m - g.dd_max_m).abs() < 1e-9);
+        assert!((hi2[0] - c.du_prev_m - 0.5 * g.dd_max_m).abs() < 1e-9);
+        assert!((c.du_prev_m - lo2[0] - 0.5 * g.dd_max_m).abs() < 1e-9);
+        assert!(lo2[0] > lo[0]);
     }
 }

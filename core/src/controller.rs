@@ -485,6 +485,16 @@ impl Controller {
         }
     }
 
+    /// The share of `cmpc-eso`'s acceleration limit in force: 1 until its
+    /// moves ring, lower after ([`crate::cmpc`], `Cmpc::watch_ringing`);
+    /// `None` for the other laws.
+    pub fn acceleration_share(&self) -> Option<f32> {
+        match &self.law {
+            Law::CmpcEso { cmpc, .. } => Some(cmpc.a_scale),
+            _ => None,
+        }
+    }
+
     /// The commanded power-piston position u, m.
     pub fn position_command(&self) -> f32 {
         match &self.law {

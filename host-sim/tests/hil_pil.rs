@@ -74,6 +74,14 @@ fn the_constrained_mpc_eso_through_the_emulated_firmware_is_bit_identical() {
         let s = spec_with(name, ControllerKind::CmpcEso, Preset::Limit);
         bit_identical(&s, &format!("{name} (cmpc-eso, limit)"));
     }
+    // A rig whose moves ring (AA1 a third smaller than the design's): the
+    // acceleration limit backs off on the board as in software
+    // (host-sim/tests/cmpc_ringing.rs).
+    let mut s = spec_with("stepload", ControllerKind::CmpcEso, Preset::Limit);
+    let mut p = *s.plant.params();
+    p.aa1_m2 = 2.0e-4;
+    s.plant = s.plant.with_params(p);
+    bit_identical(&s, "stepload (cmpc-eso, limit, AA1 2.0e-4 m^2: backs off)");
 }
 
 /// Run `s` through the emulated firmware and in software; every drive command

@@ -147,7 +147,7 @@ pub static COMMANDS: [Command; 20] = [
     ),
     c(
         "controller",
-        "[mpc-eso|mpc|pid|fuzzy-pid]",
+        "[mpc-eso|mpc|pid|fuzzy-pid|cmpc-eso]",
         "show or select the law (idle only)",
         0,
         1,
@@ -155,7 +155,7 @@ pub static COMMANDS: [Command; 20] = [
     ),
     c(
         "preset",
-        "paper|fast",
+        "paper|fast|limit",
         "load a preset's controller parameters (idle only)",
         1,
         0,
