@@ -768,9 +768,13 @@ impl Cmpc {
     /// hydraulic resonance lies lower than the design's (a smaller actuating
     /// area, a softer hose, a heavier load) is driven into a limit cycle by
     /// moves that reverse at the acceleration limit. `dd_m` is this tick's
-    /// change of the increment; at the limit in force (to 1 %) and opposite
-    /// in sign to the last such change, within [`RING_GAP`] ticks of it, it
-    /// counts one reversal; [`RING_SWINGS`] of them in a row lower the share
+    /// change of the increment; at the limit in force (to 1 %, either side:
+    /// a change the speed or stroke bounds force beyond it does not count)
+    /// and opposite in sign to the last such change, it counts one reversal.
+    /// A quiet spell of more than [`RING_GAP`] ticks between two changes at
+    /// the limit (whatever their signs) starts the count again: separate
+    /// moves, each reversing once, are not ringing. [`RING_SWINGS`]
+    /// reversals in a row lower the share
     /// of the limit by [`RING_BACKOFF`], down to [`A_SCALE_MIN`]. The share
     /// never rises again in a run (a new controller starts at 1): a limit
     /// cycle is a property of the rig, not a passing event. (Reversals
@@ -779,16 +783,18 @@ impl Cmpc {
     /// made the tracking worse.)
     fn watch_ringing(&mut self, g: &CmpcGains, dd_m: f32) {
         self.ring_age = self.ring_age.saturating_add(1);
-        if dd_m.abs() < 0.99 * g.dd_max_m * self.a_scale {
+        let limit = g.dd_max_m * self.a_scale;
+        let a = dd_m.abs();
+        // Written so that a NaN change never counts.
+        if !(a >= 0.99 * limit && a <= 1.01 * limit) {
             return;
+        }
+        if self.ring_age > RING_GAP {
+            self.ring_count = 0;
         }
         let sign = if dd_m > 0.0 { 1 } else { -1 };
         if sign != self.ring_sign {
-            self.ring_count = if self.ring_age <= RING_GAP {
-                self.ring_count + 1
-            } else {
-                1
-            };
+            self.ring_count += 1;
             self.ring_sign = sign;
             if self.ring_count >= RING_SWINGS {
                 self.a_scale = max(self.a_scale * RING_BACKOFF, A_SCALE_MIN);
@@ -894,6 +900,30 @@ mod tests {
         for k in 0..1000 {
             let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
             c.watch_ringing(&g, sign * 0.98 * g.dd_max_m);
+        }
+        assert_eq!(c.a_scale, 1.0);
+        // Separate moves in alternating directions (a square wave), each
+        // accelerating and braking at the limit, are not ringing.
+        let mut c = Cmpc::new(0.0);
+        for k in 0..100 {
+            let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+            for dd in [sign, -sign] {
+                for _ in 0..20 {
+                    c.watch_ringing(&g, dd * g.dd_max_m);
+                }
+            }
+            for _ in 0..=gap {
+                c.watch_ringing(&g, 0.0);
+            }
+        }
+        assert_eq!(c.a_scale, 1.0);
+        // Changes beyond the limit (forced by the speed or stroke bounds)
+        // and NaN never count.
+        let mut c = Cmpc::new(0.0);
+        for k in 0..1000 {
+            let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+            c.watch_ringing(&g, sign * 1.05 * g.dd_max_m);
+            c.watch_ringing(&g, f32::NAN);
         }
         assert_eq!(c.a_scale, 1.0);
         // Changes at the limit of one sign (an acceleration held) never count.
