@@ -61,6 +61,24 @@ fn gap_validation_suite() {
             o.diagnosis.verdict
         );
     }
+    // The load cell's case is learned on the force sensor (channel 4), not
+    // on the pressures its error shows in first.
+    let o = out
+        .iter()
+        .find(|o| o.case.name.starts_with("sensor_calibration (force sensor"))
+        .expect("a case of the suite");
+    let chosen = o
+        .diagnosis
+        .candidates
+        .iter()
+        .find(|c| c.effect == "sensor_calibration")
+        .expect("a sensor_calibration candidate");
+    assert_eq!(
+        chosen.params.get("channel"),
+        Some(&4.0),
+        "{:?}",
+        chosen.params
+    );
     // `parameters` does not absorb a named effect.
     for o in out
         .iter()

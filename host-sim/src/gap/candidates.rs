@@ -19,8 +19,8 @@ use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
     CalChannel, EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
-    ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, GAS_TAUS_S, GAS_WEIGHT_SUM_MAX,
-    LEAK_DP_PA, SPECTRUM_YIELDS_PA,
+    ScrewMap, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, GAS_TAUS_S,
+    GAS_WEIGHT_SUM_MAX, LEAK_DP_PA, SCREW_FORCES_N, SPECTRUM_YIELDS_PA,
 };
 use crate::model::plant::Plant;
 
@@ -47,9 +47,14 @@ pub struct CandidateFit {
     /// For `parameters`: whether the re-estimate is plausible
     /// ([`grey_box::PLAUSIBLE`], none at a bound); true for the others.
     pub plausible: bool,
-    /// Whether the effect is in its general family (its named form did not
-    /// hold): the verdict's policy puts named candidates that hold first.
+    /// Whether the effect is in its general family because its named form
+    /// did not hold: the verdict's policy puts named candidates that hold
+    /// first.
     pub general: bool,
+    /// Whether its named form held and its general family, holding clearly
+    /// better on the check runs, replaced it ([`Fitter::refine`]): for the
+    /// policy it is still a named candidate that holds.
+    pub refined: bool,
 }
 
 /// Two effects fitted jointly.
@@ -210,6 +215,7 @@ impl Fitter<'_> {
                     effects: f.effects,
                     plausible,
                     general,
+                    refined: false,
                 }
             })
             .collect();
@@ -232,7 +238,7 @@ impl Fitter<'_> {
         explains: &dyn Fn(f64, f64) -> bool,
         refines: &dyn Fn(&Candidate, f64, f64) -> bool,
     ) -> Option<CandidateFit> {
-        if c.general || c.kind == EffectKind::Parameters {
+        if c.general || c.refined || c.kind == EffectKind::Parameters {
             return None;
         }
         // A calibration verdict: the force sensor's map is tried whatever
@@ -262,7 +268,7 @@ impl Fitter<'_> {
             check_shrink: named.check_shrink,
         });
         out.effects = g.effects;
-        out.general = true;
+        out.refined = true;
         Some(out)
     }
 
@@ -291,6 +297,7 @@ impl Fitter<'_> {
             EffectKind::Friction => self.fit_friction_map(before_fit)?,
             EffectKind::Leakage => self.fit_leakage_map(before_fit)?,
             EffectKind::AccumulatorThermal => self.fit_gas_relaxation(before_fit)?,
+            EffectKind::Backlash => self.fit_screw_map(before_fit)?,
             EffectKind::SensorDelay => {
                 let f = sensor_family::fit_filter(
                     self.fit,
@@ -420,6 +427,26 @@ impl Fitter<'_> {
         self.fit_learned(GAS_TAUS_S.len(), &with, before_fit)
     }
 
+    /// The coupling's general family ([`ScrewMap`]): the deflection's
+    /// increments between the knots in units of 10 um (so that it never
+    /// falls), the first at least 1 nm (a map needs some compliance there).
+    fn fit_screw_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
+        const UNIT_M: f64 = 1e-5;
+        let with = |x: &[f64]| {
+            let mut d = [0.0; 6];
+            let mut acc = 1e-9;
+            for (di, xi) in d.iter_mut().zip(x) {
+                acc += xi.max(0.0) * UNIT_M;
+                *di = acc;
+            }
+            Effects {
+                screw_map: Some(ScrewMap { deflection_m: d }),
+                ..Effects::NONE
+            }
+        };
+        self.fit_learned(6, &with, before_fit)
+    }
+
     /// Fit one candidate on the fit runs: its effects and gap, the form that
     /// held, the re-estimated parameters (`parameters` only) and whether
     /// they are plausible.
@@ -504,6 +531,7 @@ impl Fitter<'_> {
             EffectKind::Friction => start.effects.friction_map.is_some(),
             EffectKind::Leakage => start.effects.leakage_map.is_some(),
             EffectKind::AccumulatorThermal => start.effects.gas_relaxation.is_some(),
+            EffectKind::Backlash => start.effects.screw_map.is_some(),
             EffectKind::SensorDelay => start.effects.sensor_filter.is_some(),
             EffectKind::SensorCalibration => start.effects.sensor_map.is_some(),
             _ => false,
@@ -560,7 +588,8 @@ fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
         EffectKind::HoseHysteresis
         | EffectKind::Friction
         | EffectKind::Leakage
-        | EffectKind::AccumulatorThermal => named_fit_shrink >= 0.1,
+        | EffectKind::AccumulatorThermal
+        | EffectKind::Backlash => named_fit_shrink >= 0.1,
         _ => true,
     }
 }
@@ -583,6 +612,9 @@ fn general_form(kind: EffectKind) -> &'static str {
         EffectKind::AccumulatorThermal => {
             "general: the accumulator gas relaxing over six time constants (0.1 to 30 s)"
         }
+        EffectKind::Backlash => {
+            "general: the coupling's deflection of any shape over the force on the power piston (play, spring, contact)"
+        }
         EffectKind::SensorDelay => {
             "general: a sensor's lag of any shape (a non-negative impulse response over 0 to 32 ms)"
         }
@@ -602,7 +634,8 @@ fn general_form(kind: EffectKind) -> &'static str {
 /// values at each knot, `force_n_at_<speed>_mmps` and `q_m3ps_at_<dp>_mpa`,
 /// and the pressure terms `n_per_mpa`, `g_m3pspa`; for
 /// `accumulator_thermal` in its general family each relaxation's weight,
-/// `weight_at_tau_<tau>_s`;
+/// `weight_at_tau_<tau>_s`; for `backlash` in its general family the
+/// deflection at each knot, `deflection_m_at_<force>_n`;
 /// for `sensor_delay` in its general family the channel, the mean delay and
 /// each tap's weight, `weight_at_<delay>_ms`; for `sensor_calibration` in
 /// its general family the channel and the map's knots and readings,
@@ -635,6 +668,13 @@ pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
             m.insert(format!("q_m3ps_at_{:.2}_mpa", dp * 1e-6), q);
         }
         return m;
+    }
+    if let (EffectKind::Backlash, Some(m)) = (kind, e.screw_map) {
+        return SCREW_FORCES_N[1..]
+            .iter()
+            .zip(m.deflection_m)
+            .map(|(f, d)| (format!("deflection_m_at_{f:.0}_n"), d))
+            .collect();
     }
     if let (EffectKind::AccumulatorThermal, Some(g)) = (kind, e.gas_relaxation) {
         return GAS_TAUS_S

@@ -196,24 +196,31 @@ pub fn diagnose(
     } else {
         None
     };
-    let decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
-    // The verdict's named form refined by its part's general family, where
-    // that holds clearly better on the check runs (not where a second
-    // effect is added: the pair was fitted with the named form).
-    if let Some(i) = decision.chosen {
-        let paired = decision.second.is_some_and(|s| s.significant);
-        if !paired {
-            let refined = fitter.refine(
-                &ranked[i],
-                n.fit,
-                n.check,
-                &explains,
-                &policy::general_refines,
-            );
-            if let Some(r) = refined {
-                ranked[i] = r;
-            }
+    // The best named candidate that holds, refined by its part's general
+    // family where that holds clearly better on the check runs, before the
+    // verdict is decided: `parameters` is weighed against the effect's best
+    // model, and the effect named stays the same.
+    let named = ranked.clone();
+    let mut refined = false;
+    if let Some(i) = policy::best_named_holding(n.fit, n.check, &ranked) {
+        let r = fitter.refine(
+            &ranked[i],
+            n.fit,
+            n.check,
+            &explains,
+            &policy::general_refines,
+        );
+        if let Some(r) = r {
+            ranked[i] = r;
+            refined = true;
         }
+    }
+    let mut decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
+    // A second effect was fitted beside the named form: where it adds
+    // significantly, the verdict is decided on the named forms.
+    if refined && decision.second.is_some_and(|s| s.significant) {
+        ranked = named;
+        decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
     }
     let c = conclude(&n, &ranked, pair.as_ref(), &decision);
     // The report's replays with the verdict's effects.

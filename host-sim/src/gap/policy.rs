@@ -29,13 +29,39 @@ pub const REFINE_MARGIN: f64 = 0.2;
 /// `named` that explains it too: the named form leaves a gap beyond the
 /// noise on the check runs (otherwise they cannot tell the two apart), and
 /// the general family leaves below (1 - [`REFINE_MARGIN`]) times it there
-/// and less on the fit runs. The verdict is decided before, on the named
-/// forms: a refinement changes how far the gap shrinks, never which effect
-/// is named.
+/// and less on the fit runs. A refinement changes how far the effect's gap
+/// shrinks (and so whether `parameters` beats it), never which effect is
+/// named first.
 pub fn general_refines(named: &Candidate, fit_after: f64, check_after: f64) -> bool {
     named.check_after >= NONE_GAP
         && check_after < (1.0 - REFINE_MARGIN) * named.check_after
         && fit_after < named.fit_after
+}
+
+/// Whether candidate `c` holds: plausible, and it explains the gap.
+fn holds(before_fit: f64, before_check: f64, c: &CandidateFit) -> bool {
+    c.plausible
+        && explains(
+            before_fit,
+            before_check,
+            c.candidate.fit_after,
+            c.candidate.check_after,
+        )
+}
+
+/// The best named candidate of `ranked` (an effect, not `parameters`, not
+/// a general family), where it holds: the one a verdict names first. The
+/// diagnosis refines it by its part's general family before the verdict is
+/// decided, so that `parameters` is weighed against the effect's best model.
+pub fn best_named_holding(
+    before_fit: f64,
+    before_check: f64,
+    ranked: &[CandidateFit],
+) -> Option<usize> {
+    ranked
+        .iter()
+        .position(|c| c.kind != EffectKind::Parameters && !c.general)
+        .filter(|i| holds(before_fit, before_check, &ranked[*i]))
 }
 
 /// Whether the `parameters` re-estimate `p` beats the named effect `e` when
@@ -159,25 +185,18 @@ pub fn decide(
             second: None,
         };
     }
+    let holds = |i: &usize| holds(before_fit, before_check, &ranked[*i]);
     let explains = |fit_after: f64, check_after: f64| {
         explains(before_fit, before_check, fit_after, check_after)
-    };
-    let holds = |i: &usize| {
-        let c = &ranked[*i];
-        c.plausible && explains(c.candidate.fit_after, c.candidate.check_after)
     };
     // The best named candidate if it holds; else the best general family
     // that holds (the named forms are tried first: a flexible family must
     // not take the verdict from a named form that explains the gap).
-    let effect = ranked
-        .iter()
-        .position(|c| c.kind != EffectKind::Parameters && !c.general)
-        .filter(holds)
-        .or_else(|| {
-            (0..ranked.len())
-                .filter(|i| ranked[*i].kind != EffectKind::Parameters && ranked[*i].general)
-                .find(holds)
-        });
+    let effect = best_named_holding(before_fit, before_check, ranked).or_else(|| {
+        (0..ranked.len())
+            .filter(|i| ranked[*i].kind != EffectKind::Parameters && ranked[*i].general)
+            .find(holds)
+    });
     let params = ranked
         .iter()
         .position(|c| c.kind == EffectKind::Parameters)

@@ -10,9 +10,9 @@ use super::run::Run;
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
 use crate::model::effects::{
-    self, CalChannel, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap, SensorFilter,
-    SensorMap, ServoEnvelope, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS,
-    GAS_TAUS_S, LEAK_DP_PA, SPECTRUM_YIELDS_PA,
+    self, CalChannel, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap, ScrewMap,
+    SensorFilter, SensorMap, ServoEnvelope, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S,
+    FRICTION_SPEEDS_MPS, GAS_TAUS_S, LEAK_DP_PA, SCREW_FORCES_N, SPECTRUM_YIELDS_PA,
 };
 
 /// Why the report could not be written.
@@ -320,6 +320,24 @@ fn gas_figure(path: &Path, g: &GasRelaxation, n_poly: f64) -> Result<(), PlotErr
     plot::save(path, &[panel], 900, 420)
 }
 
+/// The learned coupling: the power piston's deflection behind the motor
+/// over the hydraulic force on it, -2 kN to 2 kN.
+fn screw_figure(path: &Path, m: &ScrewMap) -> Result<(), PlotError> {
+    let curve = (0..=400)
+        .map(|i| {
+            let f = -2000.0 + 4000.0 * i as f64 / 400.0;
+            (f, m.offset_m(f) * 1e6)
+        })
+        .collect();
+    let panel = Panel::new(
+        "backlash, general family: the power piston's deflection behind the motor",
+        "hydraulic force on the power piston [N]",
+        "deflection behind the encoder [um]",
+    )
+    .with(Series::line("learned", curve));
+    plot::save(path, &[panel], 900, 420)
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -448,6 +466,25 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             "---|".repeat(LEAK_DP_PA.len() - 1),
             l.q_m3ps.map(|q| format!("{:.3}", q * 1e6)).join(" | "),
             l.g_m3pspa
+        );
+    }
+    if let Some(m) = &details.effects.screw_map {
+        screw_figure(&dir.join("screw_map.png"), m)?;
+        let _ = writeln!(
+            md,
+            "## The coupling's learned deflection\n\n\
+             | force on the power piston [N] | {} |\n|---|{}\n| deflection [um] | {} |\n\n\
+             Odd in the force; linear beyond the last knot. The step from 0 N to the first knot \
+             is the play crossed where the force turns.\n\n![screw map](screw_map.png)\n",
+            SCREW_FORCES_N[1..]
+                .iter()
+                .map(|f| format!("{f:.0}"))
+                .collect::<Vec<_>>()
+                .join(" | "),
+            "---|".repeat(SCREW_FORCES_N.len() - 1),
+            m.deflection_m
+                .map(|d| format!("{:.1}", d * 1e6))
+                .join(" | "),
         );
     }
     if let Some(g) = &details.effects.gas_relaxation {

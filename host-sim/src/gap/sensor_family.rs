@@ -261,7 +261,7 @@ pub fn fit_map(
 /// replay applies): the reading at the first knot as an offset (in units of
 /// 10 N, within +-400 N) and each segment's slope as a factor on the
 /// identity's (in units of 5 %, from 0.2 to 3), so that every step keeps
-/// the map monotone; from the identity, at most [`FORCE_MAP_ITERS`]
+/// the map monotone; from the identity, at most five (`FORCE_MAP_ITERS`)
 /// Jacobians. `None` when the load barely moves or the map does not lower
 /// the nominal gap `before_fit`.
 pub fn fit_force_map(runs: &[Run], base: &Plant, dt_s: f64, before_fit: f64) -> Option<FamilyFit> {

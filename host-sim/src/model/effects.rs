@@ -12,6 +12,7 @@
 //! | `leakage`, general family ([`LeakageMap`]) | internal leakage of any shape: Q = sign(dP) L(abs(dP)) + g dP (P1 + P2) / (2 MPa), L piecewise linear over 0 ... 4 MPa ([`LEAK_DP_PA`]), extended linearly | `q_m3ps` (L at the knots), `g_m3pspa` (learned) |
 //! | `friction`, general family ([`FrictionMap`]) | seal friction of any shape: magnitude S(abs(v)) + k (P1 + P2) / 1 MPa against the velocity, S piecewise linear over 0 ... 0.1 m/s ([`FRICTION_SPEEDS_MPS`]) | `force_n` (S at the knots), `n_per_mpa` (learned) |
 //! | `backlash` | play and axial compliance between the motor (encoder, Xi) and the power piston, which carries the hydraulic force F = AP1 P1 - AP2 P2: Xp = Xi - (play/2) tanh(F / 10 N) - F / k (a massless piston: it crosses the play where F changes sign and floats in it while F is near 0) | `play_m` (typ. 50e-6), `stiffness_npm` (typ. 2e7) |
+//! | `backlash`, general family ([`ScrewMap`]) | the coupling in any shape: the power piston sits behind the motor by D(F), odd and non-decreasing in the hydraulic force, piecewise linear over abs(F) through knots at 0, 10, 30, 100, 300, 1000, 3000 N | `deflection_m` (six, learned) |
 //! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
@@ -87,6 +88,76 @@ fn default_stiffness() -> f64 {
 
 /// Force over which the piston crosses from one flank of the play to the other, N.
 pub const BACKLASH_FLANK_N: f64 = 10.0;
+
+/// Forces of the knots of a [`ScrewMap`], N (0 first): dense where a play is
+/// crossed, up to the power piston's force under the largest loads.
+pub const SCREW_FORCES_N: [f64; 7] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+
+/// Largest deflection a [`ScrewMap`] may give at a knot, m.
+pub const SCREW_DEFLECTION_MAX_M: f64 = 0.02;
+
+/// The general family of `backlash` (the coupling between the motor and the
+/// power piston in any shape): the power piston sits behind the motor (the
+/// encoder's Xi) by `D(F)`, F the hydraulic force on it, `D` odd and
+/// non-decreasing, `D(F) = sign(F) L(abs(F))` with `L` piecewise linear
+/// through 0 at 0 and `deflection_m` at the knots [`SCREW_FORCES_N`]
+/// (extended along its last segment). A steep first segment is a play
+/// crossed where the force turns; a straight `L` a linear spring (the named
+/// form's stiffness); one that flattens with force a Hertzian contact, one
+/// that steepens a preload that gives.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ScrewMap {
+    /// `L` at the knots after the first, m (non-negative, non-decreasing).
+    pub deflection_m: [f64; 6],
+}
+
+impl ScrewMap {
+    /// The segment of `abs(f)` (0 to 5, the last extended) and its slope, m/N.
+    fn segment(&self, f_abs_n: f64) -> (usize, f64) {
+        let i = SCREW_FORCES_N[1..SCREW_FORCES_N.len() - 1]
+            .iter()
+            .take_while(|k| f_abs_n > **k)
+            .count();
+        let at = |j: usize| {
+            if j == 0 {
+                0.0
+            } else {
+                self.deflection_m[j - 1]
+            }
+        };
+        let slope = (at(i + 1) - at(i)) / (SCREW_FORCES_N[i + 1] - SCREW_FORCES_N[i]);
+        (i, slope)
+    }
+
+    /// The deflection `D(F)` of the power piston behind the motor, m.
+    pub fn offset_m(&self, f_n: f64) -> f64 {
+        let a = f_n.abs();
+        let (i, slope) = self.segment(a);
+        let base = if i == 0 {
+            0.0
+        } else {
+            self.deflection_m[i - 1]
+        };
+        (base + slope * (a - SCREW_FORCES_N[i])).copysign(f_n)
+    }
+
+    /// The derivative of [`Self::offset_m`] with respect to the force, m/N.
+    pub fn compliance_mpn(&self, f_n: f64) -> f64 {
+        self.segment(f_n.abs()).1
+    }
+
+    /// Whether the map is usable: deflections finite, non-negative,
+    /// non-decreasing, at most [`SCREW_DEFLECTION_MAX_M`], the first
+    /// positive (a coupling with no compliance at all is the nominal rig).
+    pub fn is_valid(&self) -> bool {
+        let d = &self.deflection_m;
+        d.iter()
+            .all(|x| x.is_finite() && (0.0..=SCREW_DEFLECTION_MAX_M).contains(x))
+            && d.windows(2).all(|w| w[1] >= w[0])
+            && d[0] > 0.0
+    }
+}
 
 /// Entrained air.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
@@ -306,10 +377,11 @@ impl GasRelaxation {
     }
 
     /// Whether the family is usable: every weight finite and non-negative,
-    /// their sum at most [`GAS_WEIGHT_SUM_MAX`].
+    /// their sum at most [`GAS_WEIGHT_SUM_MAX`] (to rounding: a fit scales
+    /// its weights back onto the bound).
     pub fn is_valid(&self) -> bool {
         self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
-            && self.weights.iter().sum::<f64>() <= GAS_WEIGHT_SUM_MAX
+            && self.weights.iter().sum::<f64>() <= GAS_WEIGHT_SUM_MAX * (1.0 + 1e-9)
     }
 }
 
@@ -736,6 +808,9 @@ pub struct Effects {
     pub friction_map: Option<FrictionMap>,
     /// `backlash`.
     pub backlash: Option<Backlash>,
+    /// `backlash` in its general family (exclusive with the named form).
+    #[serde(default)]
+    pub screw_map: Option<ScrewMap>,
     /// `air`.
     pub air: Option<Air>,
     /// `sensor_delay`.
@@ -964,6 +1039,7 @@ impl Effects {
         friction: None,
         friction_map: None,
         backlash: None,
+        screw_map: None,
         air: None,
         sensor_delay: None,
         sensor_filter: None,
@@ -1236,6 +1312,14 @@ impl Effects {
                 "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
             ),
             (
+                EffectKind::Backlash,
+                self.screw_map.map(|m| m.is_valid()),
+                self.backlash.is_some(),
+                "the named form and the screw map exclude each other",
+                "screw_map: deflection_m finite, non-negative, non-decreasing, the first > 0, \
+                 each at most 0.02 m",
+            ),
+            (
                 EffectKind::AccumulatorThermal,
                 self.gas_relaxation.map(|g| g.is_valid()),
                 self.accumulator_thermal.is_some(),
@@ -1482,6 +1566,45 @@ pub fn motor_accel(m: &MotorLimit, a_mps2: f64, f_load_n: f64) -> f64 {
 /// piston against a flank, m: (play / 2) tanh(F / F_flank) + F / k.
 pub fn backlash_offset_m(b: &Backlash, f_load_n: f64) -> f64 {
     0.5 * b.play_m * libm::tanh(f_load_n / BACKLASH_FLANK_N) + f_load_n / b.stiffness_npm
+}
+
+/// The coupling between the motor and the power piston of a rig: the named
+/// backlash or its general family.
+#[derive(Clone, Copy, Debug)]
+pub enum Coupling<'a> {
+    /// The named form ([`Backlash`]).
+    Named(&'a Backlash),
+    /// The general family ([`ScrewMap`]).
+    Map(&'a ScrewMap),
+}
+
+impl Coupling<'_> {
+    /// How far the power piston sits behind the motor under the force `f_n`, m.
+    pub fn offset_m(&self, f_n: f64) -> f64 {
+        match self {
+            Self::Named(b) => backlash_offset_m(b, f_n),
+            Self::Map(m) => m.offset_m(f_n),
+        }
+    }
+
+    /// The derivative of [`Self::offset_m`] with respect to the force, m/N.
+    pub fn compliance_mpn(&self, f_n: f64) -> f64 {
+        match self {
+            Self::Named(b) => backlash_compliance_mpn(b, f_n),
+            Self::Map(m) => m.compliance_mpn(f_n),
+        }
+    }
+}
+
+impl Effects {
+    /// The coupling these effects put between motor and power piston, if any.
+    pub fn coupling(&self) -> Option<Coupling<'_>> {
+        match (&self.screw_map, &self.backlash) {
+            (Some(m), _) => Some(Coupling::Map(m)),
+            (None, Some(b)) => Some(Coupling::Named(b)),
+            (None, None) => None,
+        }
+    }
 }
 
 /// Derivative of [`backlash_offset_m`] with respect to the force, m/N.

@@ -10,7 +10,8 @@
 //!   the motor (the encoder's Xi) by the play's flank the hydraulic force
 //!   pushes it against plus the screw's deflection under that force (a
 //!   massless piston: its velocity solves the coupling exactly); the line
-//!   volumes and flows use xp and its velocity;
+//!   volumes and flows use xp and its velocity; in its general family the
+//!   deflection is a learned odd function of the force;
 //! * `air`: the oil compressibility V/beta_e of each line becomes V/beta_eff(P);
 //! * `motor_limit`: the servo's speed target is capped, and its force (the
 //!   speed loop's demand on the reflected mass plus the hydraulic force on the
@@ -132,6 +133,17 @@ pub enum RigError {
         "effects air and hose_hysteresis need an explicit hose model (nonlinear, linear or rigid), not {0}"
     )]
     ImplicitHose(&'static str),
+    /// `accumulator_thermal`'s general family relaxing the gas's index to
+    /// zero or below on this rig (a spring of no or negative stiffness).
+    #[error(
+        "accumulator_thermal's relaxation weights sum to {sum}, not below the rig's polytropic index n_poly = {n_poly}: the relaxed gas would have no stiffness"
+    )]
+    GasIndex {
+        /// The weights' sum.
+        sum: f64,
+        /// The rig's polytropic index.
+        n_poly: f64,
+    },
 }
 
 impl Rig {
@@ -161,6 +173,13 @@ impl Rig {
             Some(r) => plant.with_params(r.apply(plant.params())),
             None => plant,
         };
+        if let Some(g) = &effects.gas_relaxation {
+            let sum: f64 = g.weights.iter().sum();
+            let n_poly = plant.params().n_poly;
+            if sum >= n_poly {
+                return Err(RigError::GasIndex { sum, n_poly });
+            }
+        }
         Ok(Self {
             plant,
             effects,
@@ -190,8 +209,8 @@ impl Rig {
         let mut x = self.plant.initial_state(ft0_n);
         x.xi_m = xi_m;
         x.xo_m = xo_m;
-        let xp_m = match &self.effects.backlash {
-            Some(b) => xi_m - effects::backlash_offset_m(b, self.piston_force_n(&x)),
+        let xp_m = match self.effects.coupling() {
+            Some(c) => xi_m - c.offset_m(self.piston_force_n(&x)),
             None => xi_m,
         };
         RigState {
@@ -262,7 +281,7 @@ impl Rig {
         }
         let motor = (x.xi_m, x.vi_mps);
         // The lines see the power piston: behind the backlash at ext.xp_m.
-        if e.backlash.is_some() {
+        if e.coupling().is_some() {
             x.xi_m = s.ext.xp_m;
         }
         // Accumulator flow (with the gas temperature) and leakage depend on
@@ -304,9 +323,9 @@ impl Rig {
         // Behind a backlash the piston sits where the coupling carries the
         // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt
         // is affine in vp (through Q1, Q2): solved exactly from two evaluations.
-        let (vp, (r, dh)) = match &e.backlash {
-            Some(b) => {
-                let g1 = effects::backlash_compliance_mpn(b, f_piston);
+        let (vp, (r, dh)) = match e.coupling() {
+            Some(c) => {
+                let g1 = c.compliance_mpn(f_piston);
                 let df = |r: &PressureRates| p.ap1_m2 * r.dp1_paps - p.ap2_m2 * r.dp2_paps;
                 let dv = 1e-3;
                 let f0 = df(&lines(motor.1).0);
@@ -623,9 +642,10 @@ mod tests {
 
     /// The gas relaxation: zero weights are the nominal rig to rounding; one
     /// element of weight n_poly - 1 is the named thermal form of the same
-    /// time constant to first order in the temperature (within 10 % of the
+    /// time constant to first order in the temperature (within 1 % of the
     /// named form's departure from the nominal rig); two elements of other
-    /// time constants differ from both; both forms at once are refused.
+    /// time constants differ from both; both forms at once are refused, and
+    /// so are weights that relax the index to zero.
     #[test]
     fn gas_relaxation_of_one_element_is_the_named_thermal_form() {
         let with = |w: [f64; NG]| {
@@ -651,7 +671,7 @@ mod tests {
         let effect = dev(&named, &base);
         assert!(effect > 5.0, "{effect}");
         assert!(
-            dev(&one, &named) < 0.1 * effect,
+            dev(&one, &named) < 0.01 * effect,
             "{} vs {effect}",
             dev(&one, &named)
         );
@@ -662,11 +682,80 @@ mod tests {
         e.set(EffectKind::AccumulatorThermal, Some(&[1.0]));
         e.gas_relaxation = Some(effects::GasRelaxation { weights: [0.1; NG] });
         assert!(Rig::new(Plant::nominal(), e).is_err());
+        let mut p = *Plant::nominal().params();
+        p.n_poly = 0.9;
+        let soft = Effects {
+            gas_relaxation: Some(effects::GasRelaxation {
+                weights: [0.16; NG],
+            }),
+            ..Effects::NONE
+        };
+        assert!(matches!(
+            Rig::new(Plant::nominal().with_params(p), soft),
+            Err(RigError::GasIndex { .. })
+        ));
         // Weights that sum beyond the bound are refused too.
         let e = Effects {
             gas_relaxation: Some(effects::GasRelaxation { weights: [0.2; NG] }),
             ..Effects::NONE
         };
+        assert!(Rig::new(Plant::nominal(), e).is_err());
+    }
+
+    /// The screw map: through the named form's deflections at its knots it
+    /// follows the named backlash closely (the play crossed over 10 N as
+    /// the named form's tanh nearly is); a Hertzian contact differs; both
+    /// forms at once are refused; the map is odd and its compliance is its
+    /// slope.
+    #[test]
+    fn screw_map_through_the_named_deflections_follows_the_named_backlash() {
+        let b = effects::Backlash {
+            play_m: 100e-6,
+            stiffness_npm: 2e7,
+        };
+        let deflection_m: [f64; 6] =
+            std::array::from_fn(|i| effects::backlash_offset_m(&b, effects::SCREW_FORCES_N[i + 1]));
+        let map = effects::ScrewMap { deflection_m };
+        for f in [-1500.0, -40.0, 0.0, 5.0, 60.0, 2500.0, 5000.0] {
+            assert_eq!(map.offset_m(-f), -map.offset_m(f));
+            let h = 1e-3;
+            let slope = (map.offset_m(f + h) - map.offset_m(f - h)) / (2.0 * h);
+            if !effects::SCREW_FORCES_N.contains(&f.abs()) {
+                assert!((slope - map.compliance_mpn(f)).abs() < 1e-12, "{f}");
+            }
+        }
+        let with_map = |m: effects::ScrewMap| {
+            let e = Effects {
+                screw_map: Some(m),
+                ..Effects::NONE
+            };
+            run(&Rig::new(Plant::nominal(), e).unwrap())
+        };
+        let dev = |a: &[RigState], b: &[RigState]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x.x.xo_m - y.x.xo_m).abs() / 1e-6)
+                .fold(0.0, f64::max)
+        };
+        let base = run(&rig(None));
+        let named = run(&rig(Some((EffectKind::Backlash, &[100e-6, 2e7]))));
+        let effect = dev(&named, &base);
+        assert!(effect > 5.0, "{effect}");
+        let same = with_map(map);
+        assert!(
+            dev(&same, &named) < 0.1 * effect,
+            "{} vs {effect}",
+            dev(&same, &named)
+        );
+        // A contact whose compliance falls with the force.
+        let hertz = effects::ScrewMap {
+            deflection_m: [20e-6, 40e-6, 45e-6, 50e-6, 60e-6, 80e-6],
+        };
+        let h = with_map(hertz);
+        assert!(dev(&h, &named) > 0.3 * effect && dev(&h, &base) > 0.3 * effect);
+        let mut e = Effects::NONE;
+        e.set(EffectKind::Backlash, Some(&[100e-6, 2e7]));
+        e.screw_map = Some(map);
         assert!(Rig::new(Plant::nominal(), e).is_err());
     }
 

@@ -244,6 +244,12 @@ pub fn log_meta_with(
             f.n_per_mpa
         ));
     }
+    if let Some(m) = &spec.effects.screw_map {
+        effects.push(format!(
+            "screw_map:deflection_m=[{}]",
+            list(&m.deflection_m)
+        ));
+    }
     if let Some(g) = &spec.effects.gas_relaxation {
         effects.push(format!("gas_relaxation:weights=[{}]", list(&g.weights)));
     }
