@@ -637,6 +637,26 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
 mod tests {
     use super::*;
 
+    /// The coupling's learned deflection is drawn (a PNG with content), and
+    /// a map that is not usable is refused before it is drawn.
+    #[test]
+    fn screw_map_figure_is_written() {
+        let dir = std::env::temp_dir().join(format!("dca-screw-{}", std::process::id()));
+        files::create_dir_all(&dir).unwrap();
+        let path = dir.join("screw_map.png");
+        let m = ScrewMap {
+            deflection_m: [24e-6, 31.9e-6, 34.3e-6, 39.0e-6, 50e-6, 71.6e-6],
+        };
+        assert!(m.is_valid());
+        screw_figure(&path, &m).unwrap();
+        assert!(std::fs::metadata(&path).unwrap().len() > 1000);
+        let falling = ScrewMap {
+            deflection_m: [24e-6, 20e-6, 34.3e-6, 39.0e-6, 50e-6, 71.6e-6],
+        };
+        assert!(!falling.is_valid());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// The learned loop is a hysteresis loop: on the way down the wall holds
     /// more volume than on the way up at the same pressure, more so with a
     /// larger yield; without compliance it is flat.
