@@ -199,10 +199,12 @@ pub fn diagnose(
     // The best named candidate that holds, refined by its part's general
     // family where that holds clearly better on the check runs, before the
     // verdict is decided: `parameters` is weighed against the effect's best
-    // model, and the effect named stays the same.
+    // model, and the effect named stays the same (not within the noise,
+    // where the verdict is `none` whatever the candidates).
     let named = ranked.clone();
     let mut refined = false;
-    if let Some(i) = policy::best_named_holding(n.fit, n.check, &ranked) {
+    let best = policy::best_named_holding(n.fit, n.check, &ranked);
+    if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
         let r = fitter.refine(
             &ranked[i],
             n.fit,

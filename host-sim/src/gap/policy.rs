@@ -268,6 +268,7 @@ pub fn decide(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::effects::Effects;
 
     fn cand(fit_after: f64, check_after: f64) -> Candidate {
         Candidate {
@@ -283,6 +284,45 @@ mod tests {
             parameters: None,
             named: None,
         }
+    }
+
+    fn fitted(kind: EffectKind, fit_after: f64, check_after: f64) -> CandidateFit {
+        CandidateFit {
+            kind,
+            candidate: cand(fit_after, check_after),
+            effects: Effects::NONE,
+            plausible: true,
+            general: false,
+            refined: false,
+        }
+    }
+
+    /// `parameters` beats a named form that leaves clearly more on the check
+    /// runs, but not the same effect refined by its general family: the
+    /// refinement happens before the verdict, on the best named candidate
+    /// that holds.
+    #[test]
+    fn parameters_meet_the_refined_effect() {
+        let (fit, check) = (10.0, 5.0);
+        let named = vec![
+            fitted(EffectKind::Backlash, 2.0, 2.0),
+            fitted(EffectKind::Parameters, 1.5, 1.6),
+        ];
+        assert_eq!(best_named_holding(fit, check, &named), Some(0));
+        let d = decide(8.0, fit, check, &named, None);
+        assert_eq!(d.verdict, Verdict::Effect(EffectKind::Parameters));
+        let mut refined = named.clone();
+        refined[0] = CandidateFit {
+            refined: true,
+            ..fitted(EffectKind::Backlash, 1.2, 1.3)
+        };
+        assert_eq!(best_named_holding(fit, check, &refined), Some(0));
+        let d = decide(8.0, fit, check, &refined, None);
+        assert_eq!(d.verdict, Verdict::Effect(EffectKind::Backlash));
+        assert_eq!(d.chosen, Some(0));
+        // A named candidate that does not hold is not refined.
+        let weak = vec![fitted(EffectKind::Backlash, 9.0, 4.9)];
+        assert_eq!(best_named_holding(fit, check, &weak), None);
     }
 
     #[test]
