@@ -637,8 +637,8 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
 mod tests {
     use super::*;
 
-    /// The coupling's learned deflection is drawn (a PNG with content), and
-    /// a map that is not usable is refused before it is drawn.
+    /// The coupling's learned deflection is drawn (a PNG with content); a
+    /// map whose deflection falls with force is not a valid one.
     #[test]
     fn screw_map_figure_is_written() {
         let dir = std::env::temp_dir().join(format!("dca-screw-{}", std::process::id()));
