@@ -625,16 +625,17 @@ pub struct Cmpc {
     /// Ringing: the sign of the last change of the increment at the
     /// acceleration limit.
     pub ring_sign: i8,
-    /// Ringing: reversals at the limit, each within [`RING_GAP`] of the last.
+    /// Ringing: reversals at the limit since the last quiet spell of more
+    /// than [`RING_GAP`] ticks.
     pub ring_count: u8,
     /// Ringing: MPC ticks since a change of the increment was last at the
     /// acceleration limit.
     pub ring_age: u8,
 }
 
-/// Ringing: longest gap, in MPC ticks, between two changes of the increment
-/// at the acceleration limit of opposite signs that still counts them as
-/// one oscillation (80 ms at 10 ms).
+/// Ringing: longest quiet spell, in MPC ticks, between two changes of the
+/// increment at the acceleration limit (whatever their signs) that keeps
+/// them in one oscillation (80 ms at 10 ms).
 pub const RING_GAP: u8 = 8;
 /// Ringing: reversals at the acceleration limit (three periods of the
 /// oscillation) after which the limit backs off.
@@ -774,8 +775,8 @@ impl Cmpc {
     /// A quiet spell of more than [`RING_GAP`] ticks between two changes at
     /// the limit (whatever their signs) starts the count again: separate
     /// moves, each reversing once, are not ringing. [`RING_SWINGS`]
-    /// reversals in a row lower the share
-    /// of the limit by [`RING_BACKOFF`], down to [`A_SCALE_MIN`]. The share
+    /// reversals in a row lower the share of the limit by [`RING_BACKOFF`],
+    /// down to [`A_SCALE_MIN`]. The share
     /// never rises again in a run (a new controller starts at 1): a limit
     /// cycle is a property of the rig, not a passing event. (Reversals
     /// between the speed or stroke bounds do not count: on rigs with a low

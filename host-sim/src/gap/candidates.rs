@@ -51,10 +51,6 @@ pub struct CandidateFit {
     /// did not hold: the verdict's policy puts named candidates that hold
     /// first.
     pub general: bool,
-    /// Whether its named form held and its general family, holding clearly
-    /// better on the check runs, replaced it ([`Fitter::refine`]): for the
-    /// policy it is still a named candidate that holds.
-    pub refined: bool,
 }
 
 /// Two effects fitted jointly.
@@ -215,7 +211,6 @@ impl Fitter<'_> {
                     effects: f.effects,
                     plausible,
                     general,
-                    refined: false,
                 }
             })
             .collect();
@@ -238,7 +233,8 @@ impl Fitter<'_> {
         explains: &dyn Fn(f64, f64) -> bool,
         refines: &dyn Fn(&Candidate, f64, f64) -> bool,
     ) -> Option<CandidateFit> {
-        if c.general || c.refined || c.kind == EffectKind::Parameters {
+        // Refined already: its named form is kept beside it.
+        if c.general || c.candidate.named.is_some() || c.kind == EffectKind::Parameters {
             return None;
         }
         // A calibration verdict: the force sensor's map is tried whatever
@@ -268,7 +264,6 @@ impl Fitter<'_> {
             check_shrink: named.check_shrink,
         });
         out.effects = g.effects;
-        out.refined = true;
         Some(out)
     }
 

@@ -201,9 +201,8 @@ pub fn diagnose(
     // verdict is decided: `parameters` is weighed against the effect's best
     // model, and the effect named stays the same (not within the noise,
     // where the verdict is `none` whatever the candidates).
-    let named = ranked.clone();
-    let mut refined = false;
     let best = policy::best_named_holding(n.fit, n.check, &ranked);
+    let mut named = None;
     if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
         let r = fitter.refine(
             &ranked[i],
@@ -213,15 +212,14 @@ pub fn diagnose(
             &policy::general_refines,
         );
         if let Some(r) = r {
-            ranked[i] = r;
-            refined = true;
+            named = Some((i, std::mem::replace(&mut ranked[i], r)));
         }
     }
     let mut decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
     // A second effect was fitted beside the named form: where it adds
     // significantly, the verdict is decided on the named forms.
-    if refined && decision.second.is_some_and(|s| s.significant) {
-        ranked = named;
+    if let Some((i, c)) = named.filter(|_| decision.second.is_some_and(|s| s.significant)) {
+        ranked[i] = c;
         decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
     }
     let c = conclude(&n, &ranked, pair.as_ref(), &decision);

@@ -293,7 +293,6 @@ mod tests {
             effects: Effects::NONE,
             plausible: true,
             general: false,
-            refined: false,
         }
     }
 
@@ -312,10 +311,7 @@ mod tests {
         let d = decide(8.0, fit, check, &named, None);
         assert_eq!(d.verdict, Verdict::Effect(EffectKind::Parameters));
         let mut refined = named.clone();
-        refined[0] = CandidateFit {
-            refined: true,
-            ..fitted(EffectKind::Backlash, 1.2, 1.3)
-        };
+        refined[0] = fitted(EffectKind::Backlash, 1.2, 1.3);
         assert_eq!(best_named_holding(fit, check, &refined), Some(0));
         let d = decide(8.0, fit, check, &refined, None);
         assert_eq!(d.verdict, Verdict::Effect(EffectKind::Backlash));

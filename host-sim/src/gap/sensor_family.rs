@@ -21,7 +21,9 @@ use super::lsq;
 use super::measure::gap_bounded;
 use super::replay::{measured, Replay};
 use super::run::Run;
-use crate::model::effects::{CalChannel, Effects, SensorFilter, SensorMap, FILTER_TAPS, MAP_KNOTS};
+use crate::model::effects::{
+    self, CalChannel, Effects, SensorFilter, SensorMap, FILTER_TAPS, MAP_KNOTS,
+};
 use crate::model::plant::Plant;
 use crate::model::sensors::filtered;
 
@@ -363,10 +365,7 @@ fn map_of(runs: &[Run], replays: &[Replay], c: usize) -> Option<SensorMap> {
     // readings enter linearly.
     let basis = |v: f64| {
         let mut row = [0.0; MAP_KNOTS];
-        let i = knots[1..MAP_KNOTS - 1]
-            .iter()
-            .take_while(|k| v > **k)
-            .count();
+        let i = effects::segment(&knots, v);
         let w = (v - knots[i]) / (knots[i + 1] - knots[i]);
         row[i] = 1.0 - w;
         row[i + 1] = w;

@@ -113,38 +113,23 @@ pub struct ScrewMap {
 }
 
 impl ScrewMap {
-    /// The segment of `abs(f)` (0 to 5, the last extended) and its slope, m/N.
-    fn segment(&self, f_abs_n: f64) -> (usize, f64) {
-        let i = SCREW_FORCES_N[1..SCREW_FORCES_N.len() - 1]
-            .iter()
-            .take_while(|k| f_abs_n > **k)
-            .count();
-        let at = |j: usize| {
-            if j == 0 {
-                0.0
-            } else {
-                self.deflection_m[j - 1]
-            }
-        };
-        let slope = (at(i + 1) - at(i)) / (SCREW_FORCES_N[i + 1] - SCREW_FORCES_N[i]);
-        (i, slope)
+    /// `L` at every knot of [`SCREW_FORCES_N`] (0 at 0 N), m.
+    fn knots_m(&self) -> [f64; 7] {
+        let mut d = [0.0; 7];
+        d[1..].copy_from_slice(&self.deflection_m);
+        d
     }
 
     /// The deflection `D(F)` of the power piston behind the motor, m.
     pub fn offset_m(&self, f_n: f64) -> f64 {
-        let a = f_n.abs();
-        let (i, slope) = self.segment(a);
-        let base = if i == 0 {
-            0.0
-        } else {
-            self.deflection_m[i - 1]
-        };
-        (base + slope * (a - SCREW_FORCES_N[i])).copysign(f_n)
+        interp(&SCREW_FORCES_N, &self.knots_m(), f_n.abs(), false).copysign(f_n)
     }
 
     /// The derivative of [`Self::offset_m`] with respect to the force, m/N.
     pub fn compliance_mpn(&self, f_n: f64) -> f64 {
-        self.segment(f_n.abs()).1
+        let (xs, ys) = (&SCREW_FORCES_N, self.knots_m());
+        let i = segment(xs, f_n.abs());
+        (ys[i + 1] - ys[i]) / (xs[i + 1] - xs[i])
     }
 
     /// Whether the map is usable: deflections finite, non-negative,
@@ -498,15 +483,21 @@ pub const FRICTION_SPEEDS_MPS: [f64; 6] = [0.0, 0.5e-3, 2e-3, 8e-3, 30e-3, 100e-
 /// Pressure that scales the pressure-dependent parts of the seal maps, Pa.
 pub const SEAL_P_REF_PA: f64 = 1e6;
 
-/// Linear interpolation of `ys` over the knots `xs` (increasing) at
-/// `x >= xs[0]`: flat beyond the last knot when `flat`, else extended
-/// along the last segment.
+/// The segment of the knots `xs` (increasing) that `x` falls in: `i` for
+/// `xs[i] < x <= xs[i + 1]`, the first and the last extended beyond.
+pub(crate) fn segment(xs: &[f64], x: f64) -> usize {
+    xs[1..xs.len() - 1].iter().take_while(|k| x > **k).count()
+}
+
+/// Linear interpolation of `ys` over the knots `xs` (increasing): flat
+/// beyond the last knot when `flat`, else extended along the last segment;
+/// extended along the first below the first knot.
 fn interp(xs: &[f64], ys: &[f64], x: f64, flat: bool) -> f64 {
     let last = xs.len() - 1;
     if x >= xs[last] && flat {
         return ys[last];
     }
-    let i = xs[1..last].iter().take_while(|k| x > **k).count();
+    let i = segment(xs, x);
     let w = (x - xs[i]) / (xs[i + 1] - xs[i]);
     ys[i] + w * (ys[i + 1] - ys[i])
 }
@@ -658,24 +649,16 @@ pub struct SensorMap {
     pub readings_si: [f64; MAP_KNOTS],
 }
 
-/// Piecewise-linear interpolation through `(xs, ys)` (`xs` increasing),
-/// extended linearly beyond the ends.
-fn pwl(xs: &[f64; MAP_KNOTS], ys: &[f64; MAP_KNOTS], x: f64) -> f64 {
-    let i = xs[1..MAP_KNOTS - 1].iter().take_while(|k| x > **k).count();
-    let w = (x - xs[i]) / (xs[i + 1] - xs[i]);
-    ys[i] + w * (ys[i + 1] - ys[i])
-}
-
 impl SensorMap {
     /// The recorded value of the true value `v`.
     pub fn map(&self, v: f64) -> f64 {
-        pwl(&self.knots_si, &self.readings_si, v)
+        interp(&self.knots_si, &self.readings_si, v, false)
     }
 
     /// The true value of the recorded value `y` (exact: the map is
     /// monotone and piecewise linear).
     pub fn invert(&self, y: f64) -> f64 {
-        pwl(&self.readings_si, &self.knots_si, y)
+        interp(&self.readings_si, &self.knots_si, y, false)
     }
 
     /// Whether the map is usable: knots and readings finite and strictly
