@@ -13,8 +13,10 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use rayon::prelude::*;
 
 use crate::gap::diagnose::{diagnose, Options};
+use crate::gap::measure::{gap, replays};
 use crate::gap::run::Run;
-use crate::gap::validation::{check_scenario, fit_scenario, rig_log};
+use crate::gap::validation::{cases, check_scenario, fit_scenario, rig_log, suite_logs};
+use crate::gap::{calibrate, grey_box};
 use crate::model::effects::{EffectKind, Effects};
 use crate::model::hose::grnn::GrnnHose;
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
@@ -275,6 +277,80 @@ fn gap_row() -> BenchRow {
         t,
         "s",
     )
+}
+
+/// One whole diagnosis of two 10 s runs (one fit, one check) on one core for
+/// every case of the validation suite (the logs are the suite's, with its
+/// seeds), and the share of it that the two fitted-map candidates
+/// (`sensor_calibration` and `parameters`: their fits on the fit run, their
+/// gaps on the check and fit runs) take when timed alone. A row per case, then
+/// the median and the longest. Minutes long; a measurement, never a check:
+/// beside other work on a shared machine the figures grow by half or more.
+pub fn gap_suite_rows() -> Vec<BenchRow> {
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let base = Plant::nominal();
+    let opts = Options::default();
+    let (mut rows, mut all, mut maps) = (Vec::new(), Vec::new(), Vec::new());
+    let cases = cases();
+    for (i, c) in cases.iter().enumerate() {
+        let (fit_log, check_log) = suite_logs(i, c);
+        let fit = vec![Run::new("fit.csv".into(), fit_log)];
+        let check = vec![Run::new("check.csv".into(), check_log)];
+        let (t_all, t_maps, verdict) = one.install(|| {
+            let t0 = Instant::now();
+            let sims = replays(&fit, &base, &Effects::NONE, opts.dt_s);
+            if let Some(cal) = calibrate::fit(&fit, &sims, &base, opts.dt_s) {
+                black_box(gap(&check, &base, &cal.effects, opts.dt_s));
+            }
+            if let Some(gb) = grey_box::fit(&fit, &base, opts.dt_s) {
+                black_box(gap(&check, &base, &gb.effects, opts.dt_s));
+                black_box(gap(&fit, &base, &gb.effects, opts.dt_s));
+            }
+            let t_maps = t0.elapsed().as_secs_f64();
+            let t0 = Instant::now();
+            let (d, _) = diagnose(fit, check, &base, &opts);
+            (t0.elapsed().as_secs_f64(), t_maps, d.verdict.to_string())
+        });
+        eprintln!("[{}/{}] {}: {t_all:.1} s", i + 1, cases.len(), c.name);
+        rows.push(row(
+            format!("gap diagnosis, one core: {} (verdict {verdict})", c.name),
+            t_all,
+            "s",
+        ));
+        all.push(t_all);
+        maps.push(t_maps);
+    }
+    let n = all.len();
+    rows.push(row(
+        format!("gap diagnosis, one core, {n} cases: median"),
+        median(&mut all),
+        "s",
+    ));
+    rows.push(row(
+        format!("gap diagnosis, one core, {n} cases: longest"),
+        all.iter().copied().fold(0.0, f64::max),
+        "s",
+    ));
+    rows.push(row(
+        "  of it the two fitted-map candidates alone: median",
+        median(&mut maps),
+        "s",
+    ));
+    rows.push(row(
+        "  of it the two fitted-map candidates alone: longest",
+        maps.iter().copied().fold(0.0, f64::max),
+        "s",
+    ));
+    rows
+}
+
+/// The middle element of `v` (the upper one of an even count), sorting it.
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// A batch of 16 runs on one thread against every thread.
