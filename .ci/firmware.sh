@@ -37,6 +37,9 @@ cargo clippy -p dca-firmware --no-deps --target "$TARGET" --features qemu \
 cargo clippy -p dca-firmware --no-deps --target "$TARGET" --features count \
     --bin dca-count -- -D warnings
 
+step "rustdoc (board build, -D warnings)"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps -p dca-firmware --target "$TARGET"
+
 step "size"
 SYSROOT=$(rustc --print sysroot)
 LLVM_SIZE=$(ls "$SYSROOT"/lib/rustlib/*/bin/llvm-size 2>/dev/null | head -n 1 || true)

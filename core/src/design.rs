@@ -251,7 +251,7 @@ pub struct MpcDesign {
     pub phi: SMatrix<f64, MAX_NP, MAX_NC>,
     /// State-increment gain Kx (first three entries of Kmpc).
     pub kx: [f64; 3],
-    /// Output gain Kmpc[3].
+    /// Output gain Kmpc\[3\].
     pub ky_state: f64,
     /// Reference gain Ky = first element of H^-1 Phi^T [1 ... 1]^T.
     pub ky: f64,

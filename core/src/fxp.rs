@@ -11,7 +11,7 @@
 //! | [`Pos`] | Q4.28 (I4F28) | +-8 m | 3.7e-9 m | stroke -0.01..0.11 m; ESO error; fal outputs (m^alpha, <= 2.9) |
 //! | [`Vel`] | Q8.24 (I8F24) | +-128 m/s | 6.0e-8 m/s | piston speeds <= 0.2 m/s, commands <= 0.1 m/s |
 //! | [`Acc`] | Q16.16 (I16F16) | +-32768 m/s^2 | 1.5e-5 m/s^2 | piston accelerations <= ~50 m/s^2 |
-//! | [`Log2`] | Q8.24 | +-128 | 6.0e-8 | log2 of a `Pos` magnitude, -28..3 |
+//! | log2 (`i32`, [`LOG2_FRAC`]) | Q8.24 | +-128 | 6.0e-8 | log2 of a `Pos` magnitude, -28..3 |
 //!
 //! The ranges leave two orders of magnitude of headroom above the physical
 //! signals, so saturation only happens on absurd inputs (and then it is
