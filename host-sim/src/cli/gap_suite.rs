@@ -13,6 +13,11 @@ pub struct Args {
     /// Only the cases whose name contains this text (repeatable: any of them).
     #[arg(long, value_name = "TEXT")]
     only: Vec<String>,
+    /// Draw every case's noise as if it stood this many places later in the
+    /// suite (0: the suite's own seeds). A check of how much the table hangs
+    /// on the noise of its runs.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    seed_shift: u32,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -29,7 +34,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "no case of the suite matches --only {:?}; the cases are listed in docs/gap.md",
         a.only
     );
-    let logs = |i: usize, c: &_| suite_logs(index[i], c);
+    let logs = |i: usize, c: &_| suite_logs(index[i] + a.seed_shift as usize, c);
     let res = score(&chosen, logs, &Default::default(), true);
     let table = markdown(&res);
     println!("{table}");
