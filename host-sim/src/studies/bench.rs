@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use crate::gap::diagnose::{diagnose, Options};
 use crate::gap::measure::{gap, replays};
 use crate::gap::run::Run;
+use crate::gap::stats::median;
 use crate::gap::validation::{cases, check_scenario, fit_scenario, rig_log, suite_logs};
 use crate::gap::{calibrate, grey_box};
 use crate::model::effects::{EffectKind, Effects};
@@ -250,10 +251,7 @@ fn gap_row() -> BenchRow {
     e.set(EffectKind::Friction, Some(&[20.0, 30.0, 2e-3]));
     let fit = rig_log(fit_scenario(), ControllerKind::MpcEso, &e, 1);
     let check = rig_log(check_scenario(), ControllerKind::Pid, &e, 2);
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("pool");
+    let one = one_thread();
     let t0 = Instant::now();
     let (d, _) = one.install(|| {
         diagnose(
@@ -287,10 +285,7 @@ fn gap_row() -> BenchRow {
 /// the median and the longest. Minutes long; a measurement, never a check:
 /// beside other work on a shared machine the figures grow by half or more.
 pub fn gap_suite_rows() -> Vec<BenchRow> {
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("pool");
+    let one = one_thread();
     let base = Plant::nominal();
     let opts = Options::default();
     let (mut rows, mut all, mut maps) = (Vec::new(), Vec::new(), Vec::new());
@@ -326,7 +321,7 @@ pub fn gap_suite_rows() -> Vec<BenchRow> {
     let n = all.len();
     rows.push(row(
         format!("gap diagnosis, one core, {n} cases: median"),
-        median(&mut all),
+        median(&all),
         "s",
     ));
     rows.push(row(
@@ -336,7 +331,7 @@ pub fn gap_suite_rows() -> Vec<BenchRow> {
     ));
     rows.push(row(
         "  of it the two fitted-map candidates alone: median",
-        median(&mut maps),
+        median(&maps),
         "s",
     ));
     rows.push(row(
@@ -347,10 +342,12 @@ pub fn gap_suite_rows() -> Vec<BenchRow> {
     rows
 }
 
-/// The middle element of `v` (the upper one of an even count), sorting it.
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+/// A rayon pool of one thread: what "on one core" means in the rows.
+fn one_thread() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool")
 }
 
 /// A batch of 16 runs on one thread against every thread.
@@ -368,10 +365,7 @@ fn batch_row(reps: usize) -> BenchRow {
             s
         })
         .collect();
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("pool");
+    let one = one_thread();
     let t1 = best_of(reps, || {
         one.install(|| {
             let t0 = Instant::now();
