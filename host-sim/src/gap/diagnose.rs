@@ -10,6 +10,8 @@ use std::time::Instant;
 
 use super::candidates::{params_map, CandidateFit, Fitter, PairFit};
 use super::diagnosis::{Combined, Details, Diagnosis, Second, Verdict};
+use super::grey_box;
+use super::isolate::{self, Isolation};
 use super::localise::{channel_reports, where_list};
 use super::measure::{channel_excess, gap_of, pooled, replays, Shrink, GAP_METRIC};
 use super::policy::{self, Decision};
@@ -93,12 +95,16 @@ struct Conclusion {
     combined: Option<Combined>,
 }
 
-/// The decision turned into the diagnosis's numbers and prose.
+/// The decision turned into the diagnosis's numbers and prose; `partial`:
+/// for `unexplained`, the best candidate among the effects the isolation
+/// allows.
 fn conclude(
     n: &Nominal,
     ranked: &[CandidateFit],
     pair: Option<&PairFit>,
     decision: &Decision,
+    iso: &Isolation,
+    partial: Option<usize>,
 ) -> Conclusion {
     let mut c = Conclusion {
         fit: Shrink::new(n.fit, n.fit),
@@ -110,19 +116,25 @@ fn conclude(
     };
     c.reason = match decision.chosen {
         None if decision.verdict == Verdict::None => reasons::within_noise(n.pooled),
-        None => reasons::unexplained(n.pooled, &ranked[0].candidate, pair, n.fit, n.check),
+        None => reasons::unexplained_located(
+            n.pooled,
+            iso,
+            partial.map(|i| &ranked[i].candidate),
+            &ranked[0].candidate,
+        ),
         Some(i) => {
             let chosen = &ranked[i];
             c.fit = Shrink::new(n.fit, chosen.candidate.fit_after);
             c.check = Shrink::new(n.check, chosen.candidate.check_after);
             c.effects = chosen.effects;
             let runner_up = ranked.iter().find(|x| x.kind != chosen.kind);
-            let mut r = reasons::explained(
+            let mut r = reasons::located(iso);
+            r.push_str(&reasons::explained(
                 &chosen.candidate,
                 runner_up.map(|x| &x.candidate),
                 policy::check_within_noise(n.check),
                 n.check,
-            );
+            ));
             if let Some(p) = ranked.iter().find(|x| {
                 x.kind == EffectKind::Parameters
                     && x.kind != chosen.kind
@@ -184,12 +196,40 @@ pub fn diagnose(
         dt_s: opts.dt_s,
         max_evals: opts.max_evals,
     };
+    // Where first: which equation the runs violate and on what.
+    let iso = isolate::isolate(&fit, &check, base);
     // Candidates: every effect, fitted on the fit runs, evaluated on the check runs.
     let progress = Progress::candidates(opts.progress, EffectKind::ALL.len());
     let explains =
         |fit_after: f64, check_after: f64| policy::explains(n.fit, n.check, fit_after, check_after);
     let mut ranked = fitter.rank(n.fit, n.check, &explains, &progress);
     progress.finish();
+    // The effects a verdict may name: those the closures comparable to the
+    // best name, none where a closure outside the catalogue is among them;
+    // `parameters` only where its re-estimate on the check runs agrees.
+    let outside = iso.outside_comparable();
+    let params_agree = !outside
+        && iso.allows(EffectKind::Parameters)
+        && ranked
+            .iter()
+            .find(|c| c.kind == EffectKind::Parameters)
+            .is_some_and(|p| {
+                p.plausible
+                    && policy::explains(
+                        n.fit,
+                        n.check,
+                        p.candidate.fit_after,
+                        p.candidate.check_after,
+                    )
+                    && grey_box::agrees(
+                        p.candidate.parameters.as_deref().unwrap_or_default(),
+                        &check,
+                        base,
+                        opts.dt_s,
+                    )
+            });
+    let allowed =
+        |k: EffectKind| !outside && iso.allows(k) && (k != EffectKind::Parameters || params_agree);
     // A second effect where the best single one leaves a gap beyond the noise.
     let pair = if policy::wants_pair(n.pooled, &ranked[0], opts.second_effect) {
         fitter.best_pair(&ranked)
@@ -201,7 +241,7 @@ pub fn diagnose(
     // verdict is decided: `parameters` is weighed against the effect's best
     // model, and the effect named stays the same (not within the noise,
     // where the verdict is `none` whatever the candidates).
-    let best = policy::best_named_holding(n.fit, n.check, &ranked);
+    let best = policy::best_named_holding(n.fit, n.check, &ranked, &allowed);
     let mut named = None;
     if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
         let r = fitter.refine(
@@ -215,14 +255,30 @@ pub fn diagnose(
             named = Some((i, std::mem::replace(&mut ranked[i], r)));
         }
     }
-    let mut decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
+    let mut decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref(), &allowed);
     // A second effect was fitted beside the named form: where it adds
     // significantly, the verdict is decided on the named forms.
     if let Some((i, c)) = named.filter(|_| decision.second.is_some_and(|s| s.significant)) {
         ranked[i] = c;
-        decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref());
+        decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref(), &allowed);
     }
-    let c = conclude(&n, &ranked, pair.as_ref(), &decision);
+    // An effect is named only where its model explains most of the gap
+    // (alone, or with the second effect of the pair it leads).
+    let mut partial = (0..ranked.len()).find(|&i| allowed(ranked[i].kind));
+    if let (Verdict::Effect(k), Some(i)) = (decision.verdict, decision.chosen) {
+        let c = &ranked[i].candidate;
+        let alone = policy::explains_most(n.fit, n.check, c.fit_after, c.check_after);
+        let with_pair = pair.as_ref().is_some_and(|p| {
+            (p.first == k || p.second == k)
+                && policy::explains_most(n.fit, n.check, p.fit_after, p.check_after)
+        });
+        if !(alone || with_pair) {
+            partial = Some(i);
+            decision.verdict = Verdict::Unexplained;
+            decision.chosen = None;
+        }
+    }
+    let c = conclude(&n, &ranked, pair.as_ref(), &decision, &iso, partial);
     // The report's replays with the verdict's effects.
     let after = if c.effects.is_none() {
         Vec::new()
@@ -234,10 +290,22 @@ pub fn diagnose(
     };
     let elapsed_s = t0.elapsed().as_secs_f64();
     let verdict_candidate = decision.chosen.map(|i| &ranked[i].candidate);
+    let (form, subsystem) = match (decision.verdict, verdict_candidate) {
+        (Verdict::None, _) => (None, None),
+        (_, Some(c)) => (Some(c.form.clone()), Some(c.subsystem.clone())),
+        (_, None) => (
+            Some(reasons::partial_form(
+                &iso,
+                partial.map(|i| &ranked[i].candidate),
+            )),
+            iso.best().map(|b| b.closure.site.subsystem().to_string()),
+        ),
+    };
     let diag = Diagnosis {
         verdict: decision.verdict,
-        form: verdict_candidate.map(|c| c.form.clone()),
-        subsystem: verdict_candidate.map(|c| c.subsystem.clone()),
+        form,
+        subsystem,
+        isolation: iso,
         parameters: ranked
             .iter()
             .find(|c| c.kind == EffectKind::Parameters)

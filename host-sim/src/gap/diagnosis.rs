@@ -8,6 +8,7 @@ use std::fmt;
 use serde::{Serialize, Serializer};
 
 use super::grey_box::Estimate;
+use super::isolate::Isolation;
 use super::measure::Shrink;
 use super::replay::Replay;
 use super::run::Run;
@@ -189,11 +190,16 @@ pub struct Combined {
 pub struct Diagnosis {
     /// Effect identifier, `none` or `unexplained`.
     pub verdict: Verdict,
-    /// Which model of the verdict's effect held (its candidate's `form`;
-    /// absent for `none` and `unexplained`).
+    /// Which model of the verdict's effect held (its candidate's `form`);
+    /// for `unexplained`, the violated equation, what the violation depends
+    /// on and the best partial candidate; absent for `none`.
     pub form: Option<String>,
-    /// The part of the rig of the verdict's effect.
+    /// The part of the rig of the verdict's effect; for `unexplained`, of
+    /// the violated equation; absent for `none`.
     pub subsystem: Option<String>,
+    /// Where first: which equation the runs violate and on what, before
+    /// any effect is named.
+    pub isolation: Isolation,
     /// The grey-box re-estimate of the nominal parameters (the `parameters`
     /// candidate's, whatever the verdict), with 95 % intervals.
     pub parameters: Vec<Estimate>,

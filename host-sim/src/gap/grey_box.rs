@@ -357,3 +357,27 @@ mod explore {
         }
     }
 }
+
+/// Largest difference of a parameter's log ratio between the fit runs' and
+/// the check runs' re-estimates for the two to agree (about 10 %).
+pub const AGREE_LN: f64 = 0.1;
+
+/// Whether the re-estimate `on_fit` (from the fit runs) agrees with one made
+/// on the check runs: every ratio the check runs re-estimate is within
+/// [`AGREE_LN`] of the fit runs' (1 where the fit runs left it nominal).
+/// Ratios only the fit runs re-estimate are not contradicted: the check runs
+/// do not need them. A re-estimate that stands in for an effect which is
+/// not a parameter (hysteresis taken for a softer wall) moves with the
+/// runs' scenario and does not agree.
+pub fn agrees(on_fit: &[Estimate], check: &[Run], base: &Plant, dt_s: f64) -> bool {
+    let Some(on_check) = fit(check, base, dt_s) else {
+        return false;
+    };
+    on_check.estimates.iter().all(|c| {
+        let f = on_fit
+            .iter()
+            .find(|e| e.key == c.key)
+            .map_or(1.0, |e| e.ratio);
+        (c.ratio.ln() - f.ln()).abs() <= AGREE_LN
+    })
+}

@@ -31,10 +31,13 @@
 
 pub mod calibrate;
 pub mod candidates;
+pub mod closures;
 pub mod diagnose;
 pub mod diagnosis;
+pub mod equations;
 pub mod fit;
 pub mod grey_box;
+pub mod isolate;
 pub mod localise;
 pub mod lsq;
 pub mod measure;

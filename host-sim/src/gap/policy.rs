@@ -38,6 +38,25 @@ pub fn general_refines(named: &Candidate, fit_after: f64, check_after: f64) -> b
         && fit_after < named.fit_after
 }
 
+/// Share of the gap the verdict's model must remove: "most of the gap". On
+/// the check runs where they show a gap beyond the noise; where they do not
+/// (they do not excite the effect), on the fit runs, with the check runs
+/// kept within the noise. A model that leaves more than half the gap on
+/// held-out runs is at best one contributor among others, and a name that
+/// explains a third of a gap costs an engineer more than `unexplained`.
+pub const MOST: f64 = 0.5;
+
+/// Whether a model that leaves the fit and check runs at `fit_after` and
+/// `check_after` explains most of the gap ([`MOST`]).
+pub fn explains_most(before_fit: f64, before_check: f64, fit_after: f64, check_after: f64) -> bool {
+    if before_check >= NONE_GAP {
+        Shrink::new(before_check, check_after).shrink >= MOST
+            && Shrink::new(before_fit, fit_after).shrink >= MIN_SHRINK
+    } else {
+        Shrink::new(before_fit, fit_after).shrink >= MOST && check_after < NONE_GAP
+    }
+}
+
 /// Whether candidate `c` holds: plausible, and it explains the gap.
 fn holds(before_fit: f64, before_check: f64, c: &CandidateFit) -> bool {
     c.plausible
@@ -57,10 +76,11 @@ pub fn best_named_holding(
     before_fit: f64,
     before_check: f64,
     ranked: &[CandidateFit],
+    allowed: &dyn Fn(EffectKind) -> bool,
 ) -> Option<usize> {
     ranked
         .iter()
-        .position(|c| c.kind != EffectKind::Parameters && !c.general)
+        .position(|c| c.kind != EffectKind::Parameters && !c.general && allowed(c.kind))
         .filter(|i| holds(before_fit, before_check, &ranked[*i]))
 }
 
@@ -177,6 +197,7 @@ pub fn decide(
     before_check: f64,
     ranked: &[CandidateFit],
     pair: Option<&PairFit>,
+    allowed: &dyn Fn(EffectKind) -> bool,
 ) -> Decision {
     if pooled < NONE_GAP {
         return Decision {
@@ -192,19 +213,31 @@ pub fn decide(
     // The best named candidate if it holds; else the best general family
     // that holds (the named forms are tried first: a flexible family must
     // not take the verdict from a named form that explains the gap).
-    let effect = best_named_holding(before_fit, before_check, ranked).or_else(|| {
+    let effect = best_named_holding(before_fit, before_check, ranked, allowed).or_else(|| {
         (0..ranked.len())
-            .filter(|i| ranked[*i].kind != EffectKind::Parameters && ranked[*i].general)
+            .filter(|i| {
+                ranked[*i].kind != EffectKind::Parameters
+                    && ranked[*i].general
+                    && allowed(ranked[*i].kind)
+            })
             .find(holds)
     });
     let params = ranked
         .iter()
-        .position(|c| c.kind == EffectKind::Parameters)
+        .position(|c| c.kind == EffectKind::Parameters && allowed(c.kind))
         .filter(holds);
+    // The pair's effect a verdict may name: its first where allowed, else
+    // its second.
     let pair_choice = pair
         .filter(|p| explains(p.fit_after, p.check_after))
-        .and_then(|p| ranked.iter().position(|c| c.kind == p.first))
-        .filter(|i| ranked[*i].plausible);
+        .and_then(|p| {
+            [p.first, p.second].into_iter().find_map(|k| {
+                ranked
+                    .iter()
+                    .position(|c| c.kind == k)
+                    .filter(|i| ranked[*i].plausible && allowed(k))
+            })
+        });
     let named_pair = pair_choice.filter(|_| {
         pair.is_some_and(|p| {
             p.first != EffectKind::Parameters && p.second != EffectKind::Parameters
@@ -307,18 +340,18 @@ mod tests {
             fitted(EffectKind::Backlash, 2.0, 2.0),
             fitted(EffectKind::Parameters, 1.5, 1.6),
         ];
-        assert_eq!(best_named_holding(fit, check, &named), Some(0));
-        let d = decide(8.0, fit, check, &named, None);
+        assert_eq!(best_named_holding(fit, check, &named, &|_| true), Some(0));
+        let d = decide(8.0, fit, check, &named, None, &|_| true);
         assert_eq!(d.verdict, Verdict::Effect(EffectKind::Parameters));
         let mut refined = named.clone();
         refined[0] = fitted(EffectKind::Backlash, 1.2, 1.3);
-        assert_eq!(best_named_holding(fit, check, &refined), Some(0));
-        let d = decide(8.0, fit, check, &refined, None);
+        assert_eq!(best_named_holding(fit, check, &refined, &|_| true), Some(0));
+        let d = decide(8.0, fit, check, &refined, None, &|_| true);
         assert_eq!(d.verdict, Verdict::Effect(EffectKind::Backlash));
         assert_eq!(d.chosen, Some(0));
         // A named candidate that does not hold is not refined.
         let weak = vec![fitted(EffectKind::Backlash, 9.0, 4.9)];
-        assert_eq!(best_named_holding(fit, check, &weak), None);
+        assert_eq!(best_named_holding(fit, check, &weak, &|_| true), None);
     }
 
     #[test]

@@ -3,8 +3,9 @@
 
 use super::candidates::PairFit;
 use super::diagnosis::Candidate;
+use super::isolate::Isolation;
 use super::measure::Shrink;
-use super::policy::{MIN_SHRINK, NONE_GAP, PARAMS_MARGIN};
+use super::policy::{MIN_SHRINK, MOST, NONE_GAP, PARAMS_MARGIN};
 use crate::model::effects::EffectKind;
 
 /// The verdict `none`.
@@ -101,4 +102,90 @@ pub fn parameters_set_aside(p: &Candidate, plausible: bool) -> String {
             p.check_shrink * 100.0
         )
     }
+}
+
+/// Where first: the violated equation, its evidence and the name the table
+/// gives it, as the verdict's opening.
+pub fn located(iso: &Isolation) -> String {
+    let Some(best) = iso.best() else {
+        return String::new();
+    };
+    let violated: Vec<String> = iso
+        .residuals
+        .iter()
+        .filter(|r| r.violated)
+        .map(|r| format!("{} ({:.1} / {:.1})", r.residual, r.fit, r.check))
+        .collect();
+    let other = iso
+        .closures
+        .iter()
+        .find(|c| c.closure.site != best.closure.site)
+        .map(|c| {
+            format!(
+                "; the best closure of another equation ({}) leaves {:.2}",
+                c.label,
+                iso.left(c)
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "residuals beyond the noise (fit / check runs, noise units per block): {}; violated: {}, depending on {} (a closure of it leaves {:.2} per block on the {} runs{other}); the table of docs/gap.md names this {}. ",
+        if violated.is_empty() { "none".to_string() } else { violated.join(", ") },
+        iso.equation,
+        iso.dependence,
+        iso.left(best),
+        iso.judged_on,
+        iso.names,
+    )
+}
+
+/// The verdict `unexplained` after isolation: where the violation is, what
+/// the closures say, and the best partial candidate among the effects they
+/// allow (or the best candidate overall) against what was needed.
+pub fn unexplained_located(
+    pooled: f64,
+    iso: &Isolation,
+    partial: Option<&Candidate>,
+    best: &Candidate,
+) -> String {
+    let mut r = format!("gap {pooled:.2} beyond the noise; ");
+    r.push_str(&located(iso));
+    if iso.outside_comparable() {
+        r.push_str("A closure outside the catalogue explains about as much as the best, so no effect of the catalogue is named. ");
+    }
+    match partial {
+        Some(c) => r.push_str(&format!(
+            "The best model of {} shrinks the gap by {:.0} % on the fit runs and {:.0} % on the check runs; a verdict needs {:.0} % on the check runs (or, where they show no gap, on the fit runs with the check runs kept within the noise)",
+            c.effect,
+            c.fit_shrink * 100.0,
+            c.check_shrink * 100.0,
+            MOST * 100.0
+        )),
+        None => r.push_str(&format!(
+            "no effect of the catalogue matches; the best candidate overall ({}) shrinks the gap by {:.0} % / {:.0} %",
+            best.effect,
+            best.fit_shrink * 100.0,
+            best.check_shrink * 100.0
+        )),
+    }
+    r
+}
+
+/// `form` of an `unexplained` verdict: the violated equation, what it
+/// depends on, and the best partial candidate.
+pub fn partial_form(iso: &Isolation, partial: Option<&Candidate>) -> String {
+    let mut f = format!(
+        "violated: {}, depending on {}",
+        iso.equation, iso.dependence
+    );
+    if let Some(c) = partial {
+        f.push_str(&format!(
+            "; best partial candidate: {} ({}), fit shrink {:.0} %, check shrink {:.0} %",
+            c.effect,
+            c.form,
+            c.fit_shrink * 100.0,
+            c.check_shrink * 100.0
+        ));
+    }
+    f
 }
