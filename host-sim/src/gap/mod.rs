@@ -94,7 +94,7 @@ fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
     paths
         .iter()
         .map(|p| {
-            let log = RunLog::read(p)?;
+            let log = RunLog::read_with(p, &replay::LOG_STEPS)?;
             if log.len() < 200 {
                 return Err(GapError::TooShort {
                     path: p.clone(),
