@@ -110,12 +110,12 @@ fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
         .collect()
 }
 
-/// Diagnose the logs; write the JSON to `json` and, with `report`, the
-/// Markdown report into that directory.
+/// Diagnose the logs; with `json`, write the JSON to that file and, with
+/// `report`, the Markdown report into that directory.
 pub fn run_gap(
     fit: &[PathBuf],
     check: &[PathBuf],
-    json: &Path,
+    json: Option<&Path>,
     report: Option<&Path>,
     opts: &Options,
 ) -> Result<Diagnosis, GapError> {
@@ -124,8 +124,10 @@ pub fn run_gap(
     }
     let (fit, check) = (load(fit)?, load(check)?);
     let (d, details) = diagnose::diagnose(fit, check, &Plant::nominal(), opts);
-    let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
-    files::write(json, text)?;
+    if let Some(json) = json {
+        let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
+        files::write(json, text)?;
+    }
     if let Some(dir) = report {
         report::write(dir, &d, &details)?;
     }
