@@ -1,7 +1,9 @@
-//! `host-sim gap` as docs/interfaces.md section 2 fixes it: the JSON fields, and
-//! unusable logs rejected with the file, line and column named.
+//! `host-sim gap` as docs/interfaces.md section 2 fixes it: the JSON fields,
+//! unusable logs rejected with the file, line and column named, and the
+//! command line (the binary): its outputs optional, its runs' files checked.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use dca_core::controller::ControllerKind;
 use host_sim::gap::diagnose::Options;
@@ -30,7 +32,14 @@ fn json_report_has_the_contract_fields() {
         .unwrap();
     let json = d.join("report.json");
     let report = d.join("report");
-    let diag = run_gap(&[fit], &[check], &json, Some(&report), &Options::default()).unwrap();
+    let diag = run_gap(
+        &[fit],
+        &[check],
+        Some(&json),
+        Some(&report),
+        &Options::default(),
+    )
+    .unwrap();
     assert_eq!(diag.verdict, "leakage");
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -126,7 +135,7 @@ fn bad_logs_name_file_line_and_column() {
         let err = run_gap(
             std::slice::from_ref(&p),
             std::slice::from_ref(&check),
-            &d.join("r.json"),
+            Some(&d.join("r.json")),
             None,
             &Options::default(),
         )
@@ -135,9 +144,170 @@ fn bad_logs_name_file_line_and_column() {
         let want = format!("{}:{line}: column '{column}'", p.display());
         assert!(err.starts_with(&want), "{err}\nwant {want}");
     }
-    let e = run_gap(&[], &[check], &d.join("r.json"), None, &Options::default())
+    let e = run_gap(&[], &[check], None, None, &Options::default())
         .unwrap_err()
         .to_string();
     assert!(e.contains("--fit"), "{e}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// `host-sim gap ARGS` in `dir`.
+fn host_sim_gap(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("gap")
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("host-sim runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+/// Two short clean runs (4 s each, 10 ms rows) as files `fit.csv` and
+/// `check.csv`, the fit run with a byte-order mark as a spreadsheet writes
+/// it; their text.
+fn short_runs(d: &Path) -> (String, String) {
+    let text = |scenario, kind, seed| {
+        let log = rig_log(scenario, kind, &Effects::NONE, seed).decimate(10);
+        let mut t = Vec::new();
+        log.write_to(&mut t).unwrap();
+        String::from_utf8(t).unwrap()
+    };
+    let fit = text(fit_scenario(), ControllerKind::MpcEso, 21);
+    let check = text(check_scenario(), ControllerKind::Pid, 22);
+    std::fs::write(d.join("fit.csv"), format!("\u{feff}{fit}")).unwrap();
+    std::fs::write(d.join("check.csv"), &check).unwrap();
+    (fit, check)
+}
+
+/// Without --json and --report the verdict and its numbers go to stdout;
+/// --report alone writes the report and no JSON. (The fit run starts with
+/// a byte-order mark.)
+#[test]
+fn the_outputs_are_optional() {
+    let d = dir("outputs");
+    short_runs(&d);
+    let o = host_sim_gap(&d, &["--fit", "fit.csv", "--check", "check.csv"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.starts_with("verdict: "), "{out}");
+    for want in [
+        "fit   runs: gap ",
+        "check runs: gap ",
+        "best candidates",
+        "reason: ",
+    ] {
+        assert!(out.contains(want), "{want}: {out}");
+    }
+    let o = host_sim_gap(
+        &d,
+        &[
+            "--fit",
+            "fit.csv",
+            "--check",
+            "check.csv",
+            "--report",
+            "rep",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+    assert!(d.join("rep/report.md").exists());
+    assert!(stderr(&o).contains("-> rep"), "{}", stderr(&o));
+    assert!(!d.join("report.json").exists());
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Inputs refused before any diagnosis, each with the option, file, line,
+/// column and range named: rows of 20 ms, a time column in milliseconds, a
+/// step of 1e303 s (the last two once hung the replay), the same file as fit
+/// and check run, a missing file.
+#[test]
+fn bad_runs_are_refused_at_once() {
+    let d = dir("refused");
+    let (fit, _) = short_runs(&d);
+    let header = fit.lines().position(|l| l.starts_with("t_s")).unwrap() + 1;
+    let retime = |f: &dyn Fn(f64) -> String| {
+        let lines: Vec<String> = fit
+            .lines()
+            .map(|l| match l.split_once(',') {
+                Some((t, rest)) if !l.starts_with("t_s") && !l.starts_with('#') => {
+                    format!("{},{rest}", f(t.parse().unwrap()))
+                }
+                _ => l.to_string(),
+            })
+            .collect();
+        lines.join("\n")
+    };
+    std::fs::write(d.join("ms.csv"), retime(&|t| format!("{}", t * 1000.0))).unwrap();
+    std::fs::write(d.join("huge.csv"), retime(&|t| format!("{:e}", t * 1e305))).unwrap();
+    // Every other row: 20 ms, as the console records at decimation 20.
+    let mut data_row = 0;
+    let twenty: Vec<&str> = fit
+        .lines()
+        .filter(|l| {
+            l.starts_with('#') || l.starts_with("t_s") || {
+                data_row += 1;
+                data_row % 2 == 1
+            }
+        })
+        .collect();
+    std::fs::write(d.join("twenty.csv"), twenty.join("\n")).unwrap();
+    let start = std::time::Instant::now();
+    for (args, want) in [
+        (
+            ["--fit", "fit.csv", "--check", "twenty.csv"],
+            format!(
+                "host-sim: error: twenty.csv:{}: column 't_s': time step 0.02 s is outside \
+                 0.0001 to 0.01 s, the range of the gap diagnosis (validated on rows of 1 to \
+                 10 ms: at 20 ms a clean run's gap already reaches the verdict's threshold; \
+                 1e-4 s is the plant's integration step)\n",
+                header + 2
+            ),
+        ),
+        (
+            ["--fit", "ms.csv", "--check", "check.csv"],
+            format!(
+                "host-sim: error: ms.csv:{}: column 't_s': time step 10 s is outside 0.0001 \
+                 to 0.01 s, the range of the gap diagnosis (validated on rows of 1 to 10 ms: \
+                 at 20 ms a clean run's gap already reaches the verdict's threshold; 1e-4 s \
+                 is the plant's integration step); t_s is in seconds: if this column is in \
+                 milliseconds, divide it by 1000 (a step of 0.01 s)\n",
+                header + 2
+            ),
+        ),
+        (
+            ["--fit", "huge.csv", "--check", "check.csv"],
+            format!(
+                "host-sim: error: huge.csv:{}: column 't_s': time step 1e303 s is outside \
+                 0.0001 to 0.01 s, the range of the gap diagnosis (validated on rows of 1 to \
+                 10 ms: at 20 ms a clean run's gap already reaches the verdict's threshold; \
+                 1e-4 s is the plant's integration step)\n",
+                header + 2
+            ),
+        ),
+        (
+            ["--fit", "fit.csv", "--check", "./fit.csv"],
+            "host-sim: error: --check ./fit.csv is the same file as --fit fit.csv: a check \
+             run must be held out from the fit (give another recorded run)\n"
+                .to_string(),
+        ),
+        (
+            ["--fit", "out/a.csv", "--check", "check.csv"],
+            "host-sim: error: --fit out/a.csv: no such file\n".to_string(),
+        ),
+        (
+            ["--fit", "fit.csv", "--check", "nope.csv"],
+            "host-sim: error: --check nope.csv: no such file\n".to_string(),
+        ),
+    ] {
+        let o = host_sim_gap(&d, &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert_eq!(stderr(&o), want, "{args:?}");
+    }
+    // Refused while reading: no diagnosis ran.
+    assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
     std::fs::remove_dir_all(&d).ok();
 }

@@ -378,11 +378,21 @@ fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
     let xi = log.channel("xi_m").unwrap();
     let top = xi.iter().cloned().fold(f64::MIN, f64::max);
     assert!(top > 0.01, "the piston should move towards 20 mm: {top}");
+    // A check run held out from the fit (the capture itself would be
+    // refused as both): a simulated run of the nominal rig.
+    let check = dir.join("check.csv");
+    let out = host_sim()
+        .args(["run", "--scenario", "step", "--controller", "pid"])
+        .args(["--sensors", "realistic", "--log"])
+        .arg(&check)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
     let out = host_sim()
         .args(["gap", "--fit"])
         .arg(&run)
         .arg("--check")
-        .arg(&run)
+        .arg(&check)
         .arg("--json")
         .arg(dir.join("gap.json"))
         .output()

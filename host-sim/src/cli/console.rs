@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use host_sim::hil::board::qemu::firmware_elf;
 use host_sim::hil::board::session::{parse_script, run_session, SessionOptions, Target};
 
-use super::args::seconds;
+use super::args::{input_file, seconds};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -37,6 +37,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let script = match &a.script {
         Some(p) => {
+            input_file("--script", p)?;
             let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
             Some(parse_script(&text, &p.display().to_string())?)
         }

@@ -40,12 +40,13 @@ pub struct Args {
     /// bit-identical.
     #[arg(long)]
     compare: bool,
-    /// Where to write the run log (CSV).
+    /// Where to write the run log (CSV; optional).
     #[arg(long)]
-    log: PathBuf,
+    log: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.what.check_files()?;
     let spec = resolve(&a.what.request(a.seed, None))?;
     let trace = match (a.port, a.qemu) {
         (Some(port), false) => {
@@ -66,16 +67,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         _ => anyhow::bail!("give --port DEVICE (a board) or --qemu (the emulated firmware)"),
     };
-    let log = &a.log;
-    let mut out = std::fs::File::create(log).with_context(|| log.display().to_string())?;
-    trace
-        .write_log(&mut out)
-        .with_context(|| log.display().to_string())?;
-    eprintln!(
-        "{} control ticks in the loop -> {}",
-        trace.rows.len(),
-        log.display()
-    );
+    match &a.log {
+        Some(log) => {
+            let mut out = std::fs::File::create(log).with_context(|| log.display().to_string())?;
+            trace
+                .write_log(&mut out)
+                .with_context(|| log.display().to_string())?;
+            eprintln!(
+                "{} control ticks in the loop -> {}",
+                trace.rows.len(),
+                log.display()
+            );
+        }
+        None => eprintln!("{} control ticks in the loop", trace.rows.len()),
+    }
     if a.compare {
         let sw = run_software(&spec)?;
         match trace.first_difference(&sw) {

@@ -4,6 +4,8 @@ use std::path::PathBuf;
 
 use host_sim::studies::grnn::report::{hose_report, HoseOptions};
 
+use super::args::input_file;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Quasi-static hose data (default: the shipped sample data).
@@ -25,6 +27,11 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    for (option, p) in [("--quasistatic", &a.quasistatic), ("--dynamic", &a.dynamic)] {
+        if let Some(p) = p {
+            input_file(option, p)?;
+        }
+    }
     let opts = HoseOptions {
         quasistatic: a.quasistatic,
         dynamic: a.dynamic,

@@ -6,7 +6,7 @@ use dca_core::params::PlantParams;
 use host_sim::sim::config::read_plant_file;
 use host_sim::studies::paper::{run_paper, table_markdown, PaperOptions};
 
-use super::args::preset;
+use super::args::{input_file, preset};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -32,7 +32,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         write_logs: a.logs,
         progress: true,
         rig: match &a.plant {
-            Some(p) => read_plant_file(p)?,
+            Some(p) => {
+                input_file("--plant", p)?;
+                read_plant_file(p)?
+            }
             None => PlantParams::NOMINAL,
         },
     })?;

@@ -23,6 +23,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.what.check_files()?;
     let req = a.what.request(a.seed, a.dt);
     let (spec, trace) = execute(&req, &a.log)?;
     let m = trace_metrics(&trace, &spec.scenario);

@@ -37,7 +37,10 @@ pub struct Args {
     out: PathBuf,
 }
 
-/// `A..B` (B excluded, at most 100 000 seeds) or `a,b,c`.
+/// The most seeds one `--seeds A..B` runs.
+const MAX_SEEDS: u64 = 100_000;
+
+/// `A..B` (B excluded, at most [`MAX_SEEDS`] seeds) or `a,b,c`.
 fn parse_seeds(s: &str) -> anyhow::Result<Vec<u64>> {
     let bad = || anyhow::anyhow!("--seeds '{s}': expected A..B or a,b,c");
     if let Some((a, b)) = s.split_once("..") {
@@ -45,8 +48,13 @@ fn parse_seeds(s: &str) -> anyhow::Result<Vec<u64>> {
             a.trim().parse().map_err(|_| bad())?,
             b.trim().parse().map_err(|_| bad())?,
         );
-        if b <= a || b - a > 100_000 {
-            return Err(bad());
+        if b <= a {
+            anyhow::bail!(
+                "--seeds '{s}': empty range (A..B runs the seeds A to B - 1: B must be above A)"
+            );
+        }
+        if b - a > MAX_SEEDS {
+            anyhow::bail!("--seeds '{s}': {} seeds, at most {MAX_SEEDS}", b - a);
         }
         Ok((a..b).collect())
     } else {
@@ -57,6 +65,7 @@ fn parse_seeds(s: &str) -> anyhow::Result<Vec<u64>> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    a.what.check_files()?;
     let params = a
         .params
         .iter()
@@ -117,4 +126,25 @@ fn setup_text(a: &Args, perturb: Option<&Perturb>, seeds: usize) -> String {
         );
     }
     s + ". Options: `" + &a.what.describe() + "`."
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seeds_ranges_and_lists() {
+        assert_eq!(parse_seeds("3..6").unwrap(), [3, 4, 5]);
+        assert_eq!(parse_seeds("7, 2,9").unwrap(), [7, 2, 9]);
+        for (s, want) in [
+            ("5..1", "--seeds '5..1': empty range"),
+            ("5..5", "--seeds '5..5': empty range"),
+            ("0..200000", "200000 seeds, at most 100000"),
+            ("a..3", "expected A..B or a,b,c"),
+            ("1,x", "expected A..B or a,b,c"),
+        ] {
+            let e = parse_seeds(s).unwrap_err().to_string();
+            assert!(e.contains(want), "{s}: {e}");
+        }
+    }
 }

@@ -97,7 +97,7 @@ fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
     paths
         .iter()
         .map(|p| {
-            let log = RunLog::read(p)?;
+            let log = RunLog::read_with(p, &replay::LOG_STEPS)?;
             if log.len() < 200 {
                 return Err(GapError::TooShort {
                     path: p.clone(),
@@ -113,12 +113,12 @@ fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
         .collect()
 }
 
-/// Diagnose the logs; write the JSON to `json` and, with `report`, the
-/// Markdown report into that directory.
+/// Diagnose the logs; with `json`, write the JSON to that file and, with
+/// `report`, the Markdown report into that directory.
 pub fn run_gap(
     fit: &[PathBuf],
     check: &[PathBuf],
-    json: &Path,
+    json: Option<&Path>,
     report: Option<&Path>,
     opts: &Options,
 ) -> Result<Diagnosis, GapError> {
@@ -127,8 +127,10 @@ pub fn run_gap(
     }
     let (fit, check) = (load(fit)?, load(check)?);
     let (d, details) = diagnose::diagnose(fit, check, &Plant::nominal(), opts);
-    let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
-    files::write(json, text)?;
+    if let Some(json) = json {
+        let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
+        files::write(json, text)?;
+    }
     if let Some(dir) = report {
         report::write(dir, &d, &details)?;
     }

@@ -8,16 +8,21 @@
 //! ```
 //!
 //! The reader accepts the required columns in any order, keeps optional
-//! columns it finds (by name), and rejects with an error naming the file, the
-//! line and the column: a missing required column, a value that is not a
-//! finite number, a row with the wrong number of fields, and a time column
-//! that is not strictly increasing with a uniform step. It never drops or
+//! columns it finds (by name), skips a UTF-8 byte-order mark (spreadsheet
+//! programs write one), and rejects with an error naming the file, the line
+//! and the column: a missing required column, a value that is not a finite
+//! number, a row with the wrong number of fields, and a time column that is
+//! not strictly increasing with a uniform step. A reader that can use only
+//! some steps ([`RunLog::parse_with`], [`StepRange`]) also rejects a step
+//! outside them, and says so with the range and why. It never drops or
 //! reorders rows.
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+
+use super::num::Num;
 
 /// The required columns, in the order the writer puts them.
 pub const REQUIRED: [&str; 8] = [
@@ -27,6 +32,54 @@ pub const REQUIRED: [&str; 8] = [
 /// Relative tolerance on the time step: a step that differs from the first by
 /// more than this fraction of it makes the time column non-uniform.
 pub const DT_REL_TOL: f64 = 1e-3;
+
+/// The time steps a consumer of run logs can use, with the reason (for the
+/// error that refuses a log outside them).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepRange {
+    /// Smallest step, s (every step must also be > 0).
+    pub min_dt_s: f64,
+    /// Largest step, s.
+    pub max_dt_s: f64,
+    /// Who needs the range and why, completing "... is outside the range
+    /// of `why`", e.g. "the gap diagnosis (...)".
+    pub why: &'static str,
+}
+
+impl StepRange {
+    /// Any positive, finite step (what [`RunLog::parse`] accepts).
+    pub const ANY: StepRange = StepRange {
+        min_dt_s: 0.0,
+        max_dt_s: f64::MAX,
+        why: "any reader",
+    };
+
+    /// Whether `dt_s` is in the range, ends included to within
+    /// [`DT_REL_TOL`] (a 10 ms step written with rounded times is 10 ms).
+    pub fn contains(&self, dt_s: f64) -> bool {
+        dt_s >= self.min_dt_s * (1.0 - DT_REL_TOL) && dt_s <= self.max_dt_s * (1.0 + DT_REL_TOL)
+    }
+
+    /// Why `dt_s` is refused, with a hint when the time column looks like
+    /// milliseconds (the step divided by 1000 would be in the range).
+    fn refusal(&self, dt_s: f64) -> String {
+        let mut m = format!(
+            "time step {} s is outside {} to {} s, the range of {}",
+            Num(dt_s),
+            Num(self.min_dt_s),
+            Num(self.max_dt_s),
+            self.why
+        );
+        if self.contains(dt_s / 1000.0) {
+            m += &format!(
+                "; t_s is in seconds: if this column is in milliseconds, divide it by 1000 \
+                 (a step of {} s)",
+                Num(dt_s / 1000.0)
+            );
+        }
+        m
+    }
+}
 
 /// A run log in memory: metadata, the required channels and optional ones.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -211,19 +264,32 @@ impl RunLog {
 
     /// Read a log file.
     pub fn read(path: &Path) -> Result<Self, LogError> {
+        Self::read_with(path, &StepRange::ANY)
+    }
+
+    /// Read a log file whose time step must be within `steps`.
+    pub fn read_with(path: &Path, steps: &StepRange) -> Result<Self, LogError> {
         let text = std::fs::read_to_string(path).map_err(|e| LogError {
             file: path.display().to_string(),
             line: None,
             column: None,
             message: e.to_string(),
         })?;
-        let mut log = Self::parse(&text, &path.display().to_string())?;
+        let mut log = Self::parse_with(&text, &path.display().to_string(), steps)?;
         log.source = Some(path.to_path_buf());
         Ok(log)
     }
 
     /// Parse log text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, LogError> {
+        Self::parse_with(text, file, &StepRange::ANY)
+    }
+
+    /// Parse log text whose time step must be within `steps`; `file` names
+    /// it in errors.
+    pub fn parse_with(text: &str, file: &str, steps: &StepRange) -> Result<Self, LogError> {
+        // A byte-order mark is not part of the first column's name.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let err = |line: Option<u64>, column: Option<&str>, message: String| LogError {
             file: file.to_string(),
             line,
@@ -269,7 +335,7 @@ impl RunLog {
             }
             let at = |column: Option<&str>, message: String| err(Some(n), column, message);
             log.push_row(l, &names, &slot, &at)?;
-            log.check_time_step(&mut dt0, &|m| at(Some(t_col), m))?;
+            log.check_time_step(&mut dt0, steps, &|m| at(Some(t_col), m))?;
         }
         if log.t_s.len() < 2 {
             return Err(err(None, None, "fewer than two data rows".into()));
@@ -319,10 +385,12 @@ impl RunLog {
 
     /// Check the step between the last two times: increasing, finite, and
     /// within [`DT_REL_TOL`] of the first step `dt0` (set by the first call
-    /// with two rows); `at` makes the error of the time column.
+    /// with two rows), which must be within `steps`; `at` makes the error of
+    /// the time column.
     fn check_time_step(
         &self,
         dt0: &mut Option<f64>,
+        steps: &StepRange,
         at: &dyn Fn(String) -> LogError,
     ) -> Result<(), LogError> {
         let t = &self.t_s;
@@ -333,21 +401,26 @@ impl RunLog {
         if dt <= 0.0 {
             return Err(at(format!(
                 "time {} does not increase (previous {})",
-                t[t.len() - 1],
-                t[t.len() - 2]
+                Num(t[t.len() - 1]),
+                Num(t[t.len() - 2])
             )));
         }
         if !dt.is_finite() {
             return Err(at(format!(
                 "time step from {} to {} is not a finite number",
-                t[t.len() - 2],
-                t[t.len() - 1]
+                Num(t[t.len() - 2]),
+                Num(t[t.len() - 1])
             )));
+        }
+        if dt0.is_none() && !steps.contains(dt) {
+            return Err(at(steps.refusal(dt)));
         }
         let d0 = *dt0.get_or_insert(dt);
         if (dt - d0).abs() > DT_REL_TOL * d0 {
             return Err(at(format!(
-                "non-uniform time step {dt} s (the log's step is {d0} s)"
+                "non-uniform time step {} s (the log's step is {} s)",
+                Num(dt),
+                Num(d0)
             )));
         }
         Ok(())
@@ -485,6 +558,59 @@ t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n\
         );
         assert_eq!((e.line, e.column.as_deref()), (Some(3), Some("t_s")), "{e}");
         assert!(e.message.contains("not a finite number"), "{e}");
+    }
+
+    /// Spreadsheet programs start a CSV file with a byte-order mark.
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let with_bom = format!("\u{feff}{GOOD}");
+        assert_eq!(
+            RunLog::parse(&with_bom, "bom.csv"),
+            RunLog::parse(GOOD, "good.csv")
+        );
+        let bare = GOOD.replace("# dca-log v1\n# controller=mpc-eso\n", "\u{feff}");
+        let log = RunLog::parse(&bare, "bom.csv").unwrap();
+        assert_eq!(log.t_s, [0.0, 0.001, 0.002]);
+    }
+
+    /// A step outside a reader's range is refused at the first step, with
+    /// the range; a hint at milliseconds when the step / 1000 would do.
+    #[test]
+    fn a_step_outside_the_readers_range_is_refused() {
+        let range = StepRange {
+            min_dt_s: 1e-4,
+            max_dt_s: 0.02,
+            why: "the test",
+        };
+        assert!(RunLog::parse_with(GOOD, "good.csv", &range).is_ok());
+        let ms = GOOD.replace("\n0.001,", "\n1,").replace("\n0.002,", "\n2,");
+        let e = RunLog::parse_with(&ms, "ms.csv", &range).unwrap_err();
+        assert_eq!((e.line, e.column.as_deref()), (Some(5), Some("t_s")), "{e}");
+        assert_eq!(
+            e.message,
+            "time step 1 s is outside 0.0001 to 0.02 s, the range of the test; t_s is in \
+             seconds: if this column is in milliseconds, divide it by 1000 (a step of 0.001 s)"
+        );
+        // Any reader takes it.
+        assert_eq!(RunLog::parse(&ms, "ms.csv").unwrap().dt_s(), 1.0);
+        let huge = GOOD
+            .replace("\n0.001,", "\n1e303,")
+            .replace("\n0.002,", "\n2e303,");
+        let e = RunLog::parse_with(&huge, "huge.csv", &range).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "huge.csv:5: column 't_s': time step 1e303 s is outside 0.0001 to 0.02 s, the \
+             range of the test"
+        );
+        let tiny = GOOD
+            .replace("\n0.001,", "\n1e-300,")
+            .replace("\n0.002,", "\n2e-300,");
+        let e = RunLog::parse_with(&tiny, "tiny.csv", &range).unwrap_err();
+        assert!(
+            e.message.starts_with("time step 1e-300 s is outside"),
+            "{e}"
+        );
+        assert!(!e.message.contains("milliseconds"), "{e}");
     }
 
     #[test]

@@ -31,6 +31,8 @@
 use dca_core::params::PlantParams;
 use serde::Deserialize;
 
+use crate::io::num::Num;
+
 /// Internal leakage across the pistons.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -1432,9 +1434,12 @@ pub enum EffectError {
     },
     /// A parameter outside [0, VALID_SPAN times its fit bound].
     #[error(
-        "effect {}: {param} = {value} must be in [0, {most:e}] ({span} times the \
-         largest value a fit takes, {max:e})",
+        "effect {}: {param} = {} must be in [0, {}] ({span} times the \
+         largest value a fit takes, {})",
         kind.name(),
+        Num(*value),
+        Num(*most),
+        Num(*max),
         span = VALID_SPAN
     )]
     OutOfRange {
@@ -1451,8 +1456,9 @@ pub enum EffectError {
     },
     /// The air's polytropic exponent outside [1, KAPPA_MAX].
     #[error(
-        "effect air: kappa = {0} must be in [1, {kappa_max:.3}] (isothermal to \
+        "effect air: kappa = {} must be in [1, {kappa_max:.3}] (isothermal to \
          adiabatic monatomic gas)",
+        Num(*.0),
         kappa_max = KAPPA_MAX
     )]
     Kappa(f64),

@@ -16,8 +16,9 @@
 //!
 //! Every key not given keeps its nominal value (docs/model.md section 3).
 //! Reading ([`ParamsToml`]) only records the keys, their values and where
-//! they are; [`ParamsToml::params`] then checks the values, so that the
-//! caller, who holds the text, can name the line of a wrong value.
+//! they are; [`ParamsToml::params`] then checks the values against their
+//! plausible ranges ([`Plausible`], docs/interfaces.md section 6), so that
+//! the caller, who holds the text, can name the line of a wrong value.
 
 use std::ops::Range;
 
@@ -28,27 +29,44 @@ use serde::de::{DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::io::num::Num;
 use crate::io::toml_key::KeySeed;
 
-/// What a parameter's value must be to be physical.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Bound {
-    /// Finite and > 0.
-    Positive,
-    /// Finite and >= 0.
-    NonNegative,
-    /// Finite.
-    Finite,
+/// The plausible range of a parameter, ends included: the values a rig of
+/// this kind (a miniature hydraulic actuator with hoses, docs/model.md
+/// section 3) can have, with orders of magnitude of room around the nominal
+/// rig. A file's value outside it is refused ([`check_plausible`]): such a
+/// value is a typing or unit mistake (`m_kg = 1e308` gives a rig that never
+/// moves), not a rig. Its sign also says what is physical at all
+/// ([`check`]): a range from above 0 means the value must be > 0, from 0
+/// that it must be >= 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plausible {
+    /// The smallest plausible value, in the key's unit.
+    pub min: f64,
+    /// The largest plausible value, in the key's unit.
+    pub max: f64,
 }
 
-impl Bound {
-    fn check(self, v: f64) -> Result<(), &'static str> {
-        match self {
-            _ if !v.is_finite() => Err("must be finite"),
-            Self::Positive if v <= 0.0 => Err("must be > 0"),
-            Self::NonNegative if v < 0.0 => Err("must be >= 0"),
-            _ => Ok(()),
+impl Plausible {
+    /// Why `v` is not physical (NaN, infinite, or of the wrong sign), if so.
+    fn physical(self, v: f64) -> Result<(), &'static str> {
+        if v.is_nan() {
+            Err("not a number")
+        } else if !v.is_finite() {
+            Err("must be finite")
+        } else if self.min > 0.0 && v <= 0.0 {
+            Err("must be > 0")
+        } else if self.min == 0.0 && v < 0.0 {
+            Err("must be >= 0")
+        } else {
+            Ok(())
         }
+    }
+
+    /// Whether `v` is in the range.
+    pub fn contains(self, v: f64) -> bool {
+        (self.min..=self.max).contains(&v)
     }
 }
 
@@ -61,8 +79,10 @@ pub struct ParamKey {
     pub column: &'static str,
     /// Its run-log metadata key for the controller's design model: `model.<name>`.
     pub model_column: &'static str,
-    /// What its value must be.
-    pub bound: Bound,
+    /// Its unit (`kg`, `m^3/Pa`, `1` for a pure number).
+    pub unit: &'static str,
+    /// The values a file may give it.
+    pub plausible: Plausible,
     /// Whether `sweep --perturb` draws it by default: a property of the rig
     /// that a built rig can have off its nominal value (not the atmosphere,
     /// not the stroke limits, not the prediction model's linearisation point).
@@ -103,23 +123,31 @@ impl ParamKey {
 }
 
 macro_rules! key {
-    ($f:ident, $bound:ident, $physical:expr) => {
+    ($f:ident, $unit:expr, $min:expr, $max:expr, $physical:expr) => {
         ParamKey {
             name: stringify!($f),
             column: concat!("plant.", stringify!($f)),
             model_column: concat!("model.", stringify!($f)),
-            bound: Bound::$bound,
+            unit: $unit,
+            plausible: Plausible {
+                min: $min,
+                max: $max,
+            },
             physical: $physical,
             get: |p| p.$f,
             set: |p, v| p.$f = v,
         }
     };
-    (hose $f:ident) => {
+    (hose $f:ident, $unit:expr, $min:expr, $max:expr) => {
         ParamKey {
             name: concat!("hose.", stringify!($f)),
             column: concat!("plant.hose.", stringify!($f)),
             model_column: concat!("model.hose.", stringify!($f)),
-            bound: Bound::Positive,
+            unit: $unit,
+            plausible: Plausible {
+                min: $min,
+                max: $max,
+            },
             physical: true,
             get: |p| p.hose.$f,
             set: |p, v| p.hose.$f = v,
@@ -128,37 +156,60 @@ macro_rules! key {
 }
 
 /// Every parameter of [`PlantParams`], in the struct's order (the hose wall's
-/// after `c_stop_nspm`).
+/// after `c_stop_nspm`), with its unit and plausible range (the nominal
+/// values, docs/model.md section 3, in brackets):
+///
+/// * masses and areas: the moving mass 1 g to 10 t (50 kg); the four piston
+///   areas 1 mm^2 to 100 cm^2, bores of about 1 to 110 mm (2-5 cm^2);
+/// * damping: viscous 0 to 1e6 N s/m (200), the end stops' 0 to 1e7 N s/m
+///   (2e4) and stiffness 1e4 to 1e10 N/m (1e7);
+/// * the hose: radius 0.1 to 50 mm (3 mm), length 1 cm to 100 m (1 m); its
+///   wall's compliances 1e-18 to 1e-9 m^3/Pa (1.2e-13 to 4.8e-13, 1e-18
+///   being a steel tube), time constants 10 us to 100 s (10 ms, 0.3 s), the
+///   stiffening pressure 10 kPa to 1 GPa (1 MPa);
+/// * the oil: bulk modulus 1e7 (much air) to 1e10 Pa (1.2e9; mineral oil
+///   without air is below 2e9); volumes: dead 1 mm^3 to 1 l (1 cm^3),
+///   fittings 0 to 1 l (1 cm^3);
+/// * the servo: speed limit 0.1 mm/s to 10 m/s (0.1 m/s), time constant
+///   0.1 ms to 1 s (10 ms);
+/// * the accumulator: precharge -0.1 to 100 MPa gauge (1 MPa; above vacuum,
+///   checked with the atmosphere), gas volume 0.01 cm^3 to 100 l (0.1 l),
+///   polytropic exponent 1 (isothermal) to 1.7 (adiabatic monatomic gas,
+///   5/3) (1.4), its connection's conductance 1e-14 to 1e-6 m^3/(s Pa)
+///   (5e-10);
+/// * the stroke limits -1 to 1 m (-0.010 and 0.110 m); the atmosphere
+///   10 to 200 kPa (101.325 kPa); the prediction model's linearisation
+///   pressure 0 to 100 MPa (1 MPa).
 pub static KEYS: [ParamKey; 29] = [
-    key!(m_kg, Positive, true),
-    key!(ap1_m2, Positive, true),
-    key!(ap2_m2, Positive, true),
-    key!(aa1_m2, Positive, true),
-    key!(aa2_m2, Positive, true),
-    key!(c_visc_nspm, NonNegative, true),
-    key!(hose_radius_m, Positive, true),
-    key!(hose_length_m, Positive, true),
-    key!(beta_e_pa, Positive, true),
-    key!(x_min_m, Finite, false),
-    key!(x_max_m, Finite, false),
-    key!(v_dead_m3, Positive, true),
-    key!(v_fit_m3, NonNegative, true),
-    key!(v_max_mps, Positive, true),
-    key!(tau_m_s, Positive, true),
-    key!(p_acc0_pa, Finite, true),
-    key!(v_gas0_m3, Positive, true),
-    key!(n_poly, Positive, true),
-    key!(p_atm_pa, Positive, false),
-    key!(g_acc_m3pspa, Positive, true),
-    key!(k_stop_npm, Positive, true),
-    key!(c_stop_nspm, NonNegative, true),
-    key!(hose ce0_m3pp),
-    key!(hose cf0_m3pp),
-    key!(hose tau_f_s),
-    key!(hose cs0_m3pp),
-    key!(hose tau_s_s),
-    key!(hose ps_pa),
-    key!(p_nom_pa, NonNegative, false),
+    key!(m_kg, "kg", 1e-3, 1e4, true),
+    key!(ap1_m2, "m^2", 1e-6, 1e-2, true),
+    key!(ap2_m2, "m^2", 1e-6, 1e-2, true),
+    key!(aa1_m2, "m^2", 1e-6, 1e-2, true),
+    key!(aa2_m2, "m^2", 1e-6, 1e-2, true),
+    key!(c_visc_nspm, "N s/m", 0.0, 1e6, true),
+    key!(hose_radius_m, "m", 1e-4, 0.05, true),
+    key!(hose_length_m, "m", 0.01, 100.0, true),
+    key!(beta_e_pa, "Pa", 1e7, 1e10, true),
+    key!(x_min_m, "m", -1.0, 1.0, false),
+    key!(x_max_m, "m", -1.0, 1.0, false),
+    key!(v_dead_m3, "m^3", 1e-9, 1e-3, true),
+    key!(v_fit_m3, "m^3", 0.0, 1e-3, true),
+    key!(v_max_mps, "m/s", 1e-4, 10.0, true),
+    key!(tau_m_s, "s", 1e-4, 1.0, true),
+    key!(p_acc0_pa, "Pa", -1e5, 1e8, true),
+    key!(v_gas0_m3, "m^3", 1e-8, 0.1, true),
+    key!(n_poly, "1", 1.0, 1.7, true),
+    key!(p_atm_pa, "Pa", 1e4, 2e5, false),
+    key!(g_acc_m3pspa, "m^3/(s Pa)", 1e-14, 1e-6, true),
+    key!(k_stop_npm, "N/m", 1e4, 1e10, true),
+    key!(c_stop_nspm, "N s/m", 0.0, 1e7, true),
+    key!(hose ce0_m3pp, "m^3/Pa", 1e-18, 1e-9),
+    key!(hose cf0_m3pp, "m^3/Pa", 1e-18, 1e-9),
+    key!(hose tau_f_s, "s", 1e-5, 100.0),
+    key!(hose cs0_m3pp, "m^3/Pa", 1e-18, 1e-9),
+    key!(hose tau_s_s, "s", 1e-5, 100.0),
+    key!(hose ps_pa, "Pa", 1e4, 1e9),
+    key!(p_nom_pa, "Pa", 0.0, 1e8, false),
 ];
 
 /// The parameter with key `name` (`m_kg`, `hose.ps_pa`).
@@ -196,27 +247,66 @@ pub struct ParamsError {
     pub message: String,
 }
 
-/// Check that `p` is physical: every value within its [`Bound`], the stroke
-/// `x_min_m < x_max_m` containing the initial position 0, and the
-/// accumulator's absolute precharge `p_acc0_pa + p_atm_pa` above 0.
-pub fn check(p: &PlantParams) -> Result<(), ParamsError> {
-    let fail = |key: &'static str, message: String| ParamsError {
+fn fail(key: &'static str, message: String) -> ParamsError {
+    ParamsError {
         key,
         span: None,
         message,
-    };
+    }
+}
+
+/// `1e308 kg`, `1.4` (no unit for a pure number, nor for NaN or infinity).
+fn with_unit(v: f64, unit: &str) -> String {
+    if unit == "1" || !v.is_finite() {
+        Num(v).to_string()
+    } else {
+        format!("{} {unit}", Num(v))
+    }
+}
+
+/// Check that every value of `p` is within its [`Plausible`] range, and
+/// then [`check`]: what a file must give.
+pub fn check_plausible(p: &PlantParams) -> Result<(), ParamsError> {
     for k in &KEYS {
         let v = k.get(p);
-        k.bound
-            .check(v)
-            .map_err(|why| fail(k.name, format!("{v}: {why}")))?;
+        k.plausible
+            .physical(v)
+            .map_err(|why| fail(k.name, format!("{}: {why}", with_unit(v, k.unit))))?;
+        let r = k.plausible;
+        if !r.contains(v) {
+            return Err(fail(
+                k.name,
+                format!(
+                    "{} is outside the plausible range {} to {}",
+                    with_unit(v, k.unit),
+                    Num(r.min),
+                    with_unit(r.max, k.unit)
+                ),
+            ));
+        }
+    }
+    check(p)
+}
+
+/// Check that `p` is physical: every value finite and of its sign
+/// ([`Plausible`]), the stroke `x_min_m < x_max_m` containing the initial
+/// position 0, and the accumulator's absolute precharge `p_acc0_pa +
+/// p_atm_pa` above 0. (A Monte Carlo draw, within a factor 2 of a plausible
+/// value, may leave the plausible range: it is checked here only.)
+pub fn check(p: &PlantParams) -> Result<(), ParamsError> {
+    for k in &KEYS {
+        let v = k.get(p);
+        k.plausible
+            .physical(v)
+            .map_err(|why| fail(k.name, format!("{}: {why}", with_unit(v, k.unit))))?;
     }
     if p.x_min_m >= p.x_max_m {
         return Err(fail(
             "x_max_m",
             format!(
                 "x_min_m = {} must be below x_max_m = {}",
-                p.x_min_m, p.x_max_m
+                Num(p.x_min_m),
+                Num(p.x_max_m)
             ),
         ));
     }
@@ -230,7 +320,8 @@ pub fn check(p: &PlantParams) -> Result<(), ParamsError> {
             key,
             format!(
                 "the stroke [{}, {}] m must contain the initial position 0",
-                p.x_min_m, p.x_max_m
+                Num(p.x_min_m),
+                Num(p.x_max_m)
             ),
         ));
     }
@@ -239,7 +330,8 @@ pub fn check(p: &PlantParams) -> Result<(), ParamsError> {
             "p_acc0_pa",
             format!(
                 "p_acc0_pa = {} is below vacuum (-p_atm_pa = {})",
-                p.p_acc0_pa, -p.p_atm_pa
+                Num(p.p_acc0_pa),
+                Num(-p.p_atm_pa)
             ),
         ));
     }
@@ -267,8 +359,9 @@ impl ParamsToml {
         self.entries.is_empty()
     }
 
-    /// The nominal parameters with the file's values; an error names the key
-    /// and, where there is one, the span of its value.
+    /// The nominal parameters with the file's values, each within its
+    /// plausible range ([`check_plausible`]); an error names the key and,
+    /// where there is one, the span of its value.
     pub fn params(&self) -> Result<PlantParams, ParamsError> {
         let mut p = PlantParams::NOMINAL;
         for e in &self.entries {
@@ -289,7 +382,7 @@ impl ParamsToml {
             };
             e.key.set(&mut p, v);
         }
-        check(&p).map_err(|mut err| {
+        check_plausible(&p).map_err(|mut err| {
             // Point at the key's value; for a relation (the stroke, the
             // precharge) at the last of its keys the file gave.
             let related: &[&str] = match err.key {
@@ -533,6 +626,32 @@ mod tests {
         check(&PlantParams::NOMINAL).unwrap();
     }
 
+    /// The nominal rig is well inside every range (a factor 5 from each end
+    /// where the range starts above 0), and each range's ends are accepted.
+    #[test]
+    fn the_nominal_rig_is_plausible() {
+        check_plausible(&PlantParams::NOMINAL).unwrap();
+        for k in &KEYS {
+            let (v, r) = (k.get(&PlantParams::NOMINAL), k.plausible);
+            assert!(r.min < r.max, "{}", k.name);
+            if r.min > 0.0 && k.name != "n_poly" && k.name != "p_atm_pa" {
+                assert!(v >= 5.0 * r.min && v <= r.max / 5.0, "{}: {v}", k.name);
+            }
+        }
+        // Each end is accepted where the relations allow it.
+        for k in KEYS
+            .iter()
+            .filter(|k| k.name != "x_min_m" && k.name != "x_max_m")
+        {
+            for end in [k.plausible.min, k.plausible.max] {
+                let mut p = PlantParams::NOMINAL;
+                k.set(&mut p, end);
+                let r = check_plausible(&p);
+                assert!(r.is_ok(), "{} = {end}: {r:?}", k.name);
+            }
+        }
+    }
+
     #[test]
     fn keys_and_hose_table() {
         let p = read("m_kg = 60\nbeta_e_pa = 1.0e9\n[hose]\nps_pa = 2e6\n").unwrap();
@@ -545,12 +664,37 @@ mod tests {
             ("m_gk = 1.0\n", "m_gk"),
             ("[hose]\nm_kg = 1.0\n", "m_kg"),
             ("[hose]\n[hose.x]\n", "x"),
-            ("m_kg = -1.0\n", "must be > 0"),
-            ("m_kg = nan\n", "must be finite"),
+            (
+                "m_kg = -1.0\n",
+                "invalid value for `m_kg`: -1 kg: must be > 0",
+            ),
+            (
+                "m_kg = nan\n",
+                "invalid value for `m_kg`: NaN: not a number",
+            ),
+            ("m_kg = inf\n", "must be finite"),
+            (
+                "m_kg = 1e308\n",
+                "invalid value for `m_kg`: 1e308 kg is outside the plausible range 0.001 to \
+                 10000 kg",
+            ),
+            (
+                "[hose]\ncs0_m3pp = 1e-6\n",
+                "invalid value for `hose.cs0_m3pp`: 1e-6 m^3/Pa is outside the plausible range \
+                 1e-18 to 1e-9 m^3/Pa",
+            ),
+            (
+                "n_poly = 0.9\n",
+                "`n_poly`: 0.9 is outside the plausible range 1 to 1.7",
+            ),
             ("m_kg = \"heavy\"\n", "expected a number"),
             ("x_min_m = 0.2\n", "x_min_m"),
             ("x_max_m = -0.02\n", "x_max_m"),
-            ("p_acc0_pa = -2e5\n", "vacuum"),
+            (
+                "p_acc0_pa = -2e5\n",
+                "-200000 Pa is outside the plausible range -100000 to 1e8 Pa",
+            ),
+            ("p_acc0_pa = -1e5\np_atm_pa = 5e4\n", "vacuum"),
         ] {
             let e = read(text).unwrap_err();
             assert!(e.contains(what), "{text:?}: {e}");

@@ -21,6 +21,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::io::files::{self, PathError};
+use crate::io::num::Num;
 use crate::io::runlog::LogError;
 use crate::model::params::{self, ParamKey, ParamsError};
 use crate::model::plant::Plant;
@@ -84,7 +85,8 @@ impl Perturb {
     pub fn new(fraction: f64, keys: Option<&str>) -> Result<Self, SweepError> {
         if !(fraction.is_finite() && (0.0..1.0).contains(&fraction)) {
             return Err(SweepError::Perturb(format!(
-                "--perturb {fraction}: expected a fraction in [0, 1), e.g. 0.1 for +-10 %"
+                "--perturb {}: expected a fraction in [0, 1), e.g. 0.1 for +-10 %",
+                Num(fraction)
             )));
         }
         let keys = match keys {

@@ -68,6 +68,7 @@ use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::io::num::Num;
 use crate::io::toml_key::KeySeed;
 use crate::model::params::{ParamsError, ParamsToml};
 use crate::model::scenario::{Command, Piecewise, PiecewiseError, Scenario, Signal};
@@ -219,7 +220,12 @@ pub enum ParamError {
         hint: String,
     },
     /// The value is out of range or of the wrong type.
-    #[error("'{path}' = {value}: {reason} (accepted: {min} to {max})")]
+    #[error(
+        "'{path}' = {}: {reason} (accepted: {} to {})",
+        Num(*value),
+        Num(*min),
+        Num(*max)
+    )]
     Value {
         /// The parameter's path.
         path: &'static str,
@@ -351,11 +357,12 @@ impl Visitor<'_> for ValueSeed {
         let p = self.0;
         p.check(v).map_err(|e| {
             E::custom(format!(
-                "invalid value for `{}`: {v}: {} (accepted: {} to {})",
+                "invalid value for `{}`: {}: {} (accepted: {} to {})",
                 p.name,
+                Num(v),
                 e.as_str(),
-                p.min.value(),
-                p.max.value()
+                Num(p.min.value()),
+                Num(p.max.value())
             ))
         })
     }
@@ -594,9 +601,14 @@ pub enum SignalSpec {
 /// file, the line and the field).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum SignalError {
-    /// A parameter is not finite.
-    #[error("{0} must be finite")]
-    NotFinite(&'static str),
+    /// A parameter is not finite: NaN (not a number) or infinite.
+    #[error("{name} = {}: {}", Num(*value), if value.is_nan() { "not a number" } else { "must be finite" })]
+    NotFinite {
+        /// The parameter (`values[1]` for an element of a list).
+        name: String,
+        /// Its value.
+        value: f64,
+    },
     /// The steps or pieces do not form a piecewise signal.
     #[error(transparent)]
     Piecewise(#[from] PiecewiseError),
@@ -605,16 +617,22 @@ pub enum SignalError {
 impl SignalSpec {
     /// Build the signal; `Err` says what is wrong for the caller to locate.
     pub fn build(&self) -> Result<Signal, SignalError> {
-        let finite = |name: &'static str, v: f64| {
+        let finite = |name: &str, v: f64| {
             if v.is_finite() {
                 Ok(v)
             } else {
-                Err(SignalError::NotFinite(name))
+                Err(SignalError::NotFinite {
+                    name: name.to_string(),
+                    value: v,
+                })
             }
         };
         Ok(match self {
             Self::Constant { value } => Signal::Constant(finite("value", *value)?),
             Self::Steps { times_s, values } => {
+                for (i, v) in values.iter().enumerate() {
+                    finite(&format!("values[{i}]"), *v)?;
+                }
                 Signal::Piecewise(Piecewise::constants(times_s.clone(), values)?)
             }
             Self::Sine {
@@ -767,7 +785,11 @@ impl ScenarioFile {
             return Err(at(
                 f.duration_s.span(),
                 "duration_s",
-                format!("{d} s: must be in (0, 3600]"),
+                if d.is_nan() {
+                    "NaN: not a number; seconds in (0, 3600] are expected".to_string()
+                } else {
+                    format!("{} s: must be in (0, 3600]", Num(d))
+                },
             ));
         }
         // Finite parameters can still give infinite or NaN values within
@@ -1104,6 +1126,47 @@ preset = "fast"
         assert_eq!(
             e.to_string(),
             "c.toml:2: unexpected end of file: a value is missing"
+        );
+    }
+
+    /// A value that is not a number is said to be one, not "too large"; a
+    /// huge one is printed readably.
+    #[test]
+    fn nan_and_huge_values_are_named() {
+        let steps = "duration_s = 3.0\n[reference]\ntype = \"steps\"\ntimes_s = [1.0]\n\
+                     values = [0.0, nan]\n";
+        let e = ScenarioFile::load_str(steps, "s.toml", "s").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "s.toml:2: field 'reference': values[1] = NaN: not a number"
+        );
+        let inf = steps.replace("nan", "inf");
+        let e = ScenarioFile::load_str(&inf, "s.toml", "s").unwrap_err();
+        assert!(
+            e.message.ends_with("values[1] = inf: must be finite"),
+            "{e}"
+        );
+        let sine = "duration_s = 3.0\n[reference]\ntype = \"sine\"\namplitude = nan\n\
+                    frequency_hz = 1.0\n";
+        let e = ScenarioFile::load_str(sine, "s.toml", "s").unwrap_err();
+        assert!(e.message.ends_with("amplitude = NaN: not a number"), "{e}");
+        let long = "duration_s = 1e308\n[reference]\ntype = \"constant\"\nvalue = 0.05\n";
+        let e = ScenarioFile::load_str(long, "s.toml", "s").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "s.toml:1: field 'duration_s': 1e308 s: must be in (0, 3600]"
+        );
+        let e = ScenarioFile::load_str(
+            "duration_s = 5.0\n[reference]\ntype = \"constant\"\nvalue = 0.05\n\
+             [plant.params]\nm_kg = 1e308\n",
+            "s.toml",
+            "s",
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "s.toml:6: field 'plant.params.m_kg': invalid value for `m_kg`: 1e308 kg is \
+             outside the plausible range 0.001 to 10000 kg"
         );
     }
 }

@@ -32,6 +32,7 @@ pub mod request;
 
 use dca_core::controller::{Controller, ControllerConfig, Output, Sample};
 
+use crate::io::num::Num;
 use crate::io::runlog::RunLog;
 use crate::model::effects::Effects;
 use crate::model::plant::{Plant, State};
@@ -169,7 +170,8 @@ pub struct Tick<'a> {
 pub enum SimError {
     /// The controller configuration was refused.
     Config(String),
-    /// The plant step is not positive, or 1 ms is not a whole number of steps.
+    /// The plant step is outside [`MIN_DT_S`] to 1 ms, or 1 ms is not a
+    /// whole number of steps.
     Step(f64),
     /// The effects cannot be combined with this plant.
     Effects(RigError),
@@ -187,7 +189,10 @@ impl std::fmt::Display for SimError {
             Self::Effects(s) => write!(f, "effects refused: {s}"),
             Self::Step(dt) => write!(
                 f,
-                "plant step {dt} s must be > 0 and divide the 1 ms log grid"
+                "plant step {}{} must be within {} to 0.001 s and divide the 1 ms log grid",
+                Num(*dt),
+                if dt.is_nan() { " (not a number)" } else { " s" },
+                Num(MIN_DT_S)
             ),
             Self::Diverged { t_s } => write!(
                 f,
@@ -304,14 +309,26 @@ where
     }
 }
 
+/// The smallest plant step, s: 1000 steps per logged millisecond (the
+/// nominal step is 1e-4 s); a finer one would make a run of seconds take
+/// hours.
+pub const MIN_DT_S: f64 = 1e-6;
+
+/// The plant steps per logged millisecond for the plant step `dt_s`, if it
+/// is usable: within [`MIN_DT_S`] to 1 ms and dividing 1 ms.
+pub fn steps_per_ms(dt_s: f64) -> Result<u64, SimError> {
+    let per_ms = libm::round(1e-3 / dt_s);
+    if (MIN_DT_S..=1e-3).contains(&dt_s) && per_ms >= 1.0 && (per_ms * dt_s - 1e-3).abs() < 1e-12 {
+        Ok(per_ms as u64)
+    } else {
+        Err(SimError::Step(dt_s))
+    }
+}
+
 /// Run one scenario; `hook` sees every base tick after the controller step.
 pub fn run_with(spec: &RunSpec, hook: impl FnMut(&Tick)) -> Result<Trace, SimError> {
     let dt = spec.dt_s;
-    let per_ms = libm::round(1e-3 / dt);
-    if !(dt > 0.0 && per_ms >= 1.0 && (per_ms * dt - 1e-3).abs() < 1e-12) {
-        return Err(SimError::Step(dt));
-    }
-    let log_every = per_ms as u64;
+    let log_every = steps_per_ms(dt)?;
     let mut cfg = spec.controller;
     cfg.base_dt_s = dt;
     let scenario = &spec.scenario;

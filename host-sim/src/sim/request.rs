@@ -8,15 +8,16 @@ use std::path::Path;
 
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
+use crate::io::num::Num;
 use crate::io::runlog::LogError;
 use crate::model::effects::EffectError;
 use crate::model::params;
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
-use crate::model::scenario::{Command, Scenario, Signal};
+use crate::model::scenario::{tick_time_s, Command, Scenario, Signal};
 use crate::model::sensors::SensorMode;
 use crate::sim::config::{read_plant_file, ConfigFile, FileError, ScenarioFile};
 use crate::sim::metrics::{self, Kind, Metrics};
-use crate::sim::{run, RunSpec, SimError, Trace};
+use crate::sim::{run, steps_per_ms, RunSpec, SimError, Trace};
 
 /// What the user asked for (the command-line options of `run`).
 #[derive(Clone, Debug, Default)]
@@ -75,6 +76,38 @@ pub enum RequestError {
         file: String,
         /// Why.
         error: EffectError,
+    },
+    /// A closed-loop scenario's reference leaves the stroke that the
+    /// controller clamps it to (its limits `x_min_m`, `x_max_m`).
+    #[error(
+        "{scenario}: the reference leaves the stroke {} to {} m (the controller's limits \
+         x_min_m, x_max_m), to which the controller would clamp it: {} m at t = {} s{}; \
+         give a reference within the stroke",
+        Num(*min_m),
+        Num(*max_m),
+        Num(*first_m),
+        Num(*first_t_s),
+        if furthest_t_s == first_t_s {
+            String::new()
+        } else {
+            format!(", furthest {} m at t = {} s", Num(*furthest_m), Num(*furthest_t_s))
+        }
+    )]
+    ReferenceOutsideStroke {
+        /// The scenario as given (a name or a file).
+        scenario: String,
+        /// The stroke's lower end, m.
+        min_m: f64,
+        /// The stroke's upper end, m.
+        max_m: f64,
+        /// The first reference outside, m.
+        first_m: f64,
+        /// Its time, s.
+        first_t_s: f64,
+        /// The reference furthest outside, m.
+        furthest_m: f64,
+        /// Its time, s.
+        furthest_t_s: f64,
     },
     /// An `--effect` argument is wrong.
     #[error("--effect: {0}")]
@@ -173,7 +206,7 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
     for arg in &req.effects {
         effects.parse_arg(arg).map_err(RequestError::EffectArg)?;
     }
-    Ok(RunSpec {
+    let spec = RunSpec {
         scenario,
         controller,
         plant: Plant::new(rig, hose),
@@ -181,7 +214,57 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         sensors,
         seed: req.seed.or(plant_sec.seed).unwrap_or(0),
         dt_s,
-    })
+    };
+    check_reference(&spec, &req.scenario)?;
+    Ok(spec)
+}
+
+/// Refuse a reference that leaves the stroke at any control tick of the
+/// run (every plant step; the controller would clamp it there and flag
+/// it, docs/interfaces.md section 1). A plant step the run refuses is left
+/// to the run.
+fn check_reference(spec: &RunSpec, scenario: &str) -> Result<(), RequestError> {
+    let Command::Reference(r) = spec.scenario.command() else {
+        return Ok(());
+    };
+    if steps_per_ms(spec.dt_s).is_err() {
+        return Ok(());
+    }
+    let lim = spec.controller.limits;
+    // As the controller compares: in f32.
+    let excess = |v: f64| {
+        let v = v as f32;
+        if v.is_nan() {
+            f32::INFINITY
+        } else {
+            (lim.x_min_m - v).max(v - lim.x_max_m)
+        }
+    };
+    let mut first: Option<(f64, f64)> = None;
+    let mut furthest = (0.0, 0.0, 0.0f32);
+    for k in 0..spec.scenario.n_steps(spec.dt_s) {
+        let t = tick_time_s(k, spec.dt_s);
+        let v = r.value(t);
+        let e = excess(v);
+        if e > 0.0 {
+            first.get_or_insert((v, t));
+            if e > furthest.2 {
+                furthest = (v, t, e);
+            }
+        }
+    }
+    match first {
+        None => Ok(()),
+        Some((first_m, first_t_s)) => Err(RequestError::ReferenceOutsideStroke {
+            scenario: scenario.to_string(),
+            min_m: lim.x_min_m.into(),
+            max_m: lim.x_max_m.into(),
+            first_m,
+            first_t_s,
+            furthest_m: furthest.0,
+            furthest_t_s: furthest.1,
+        }),
+    }
 }
 
 /// The metadata lines a simulated run's log carries.
@@ -484,5 +567,67 @@ mod tests {
         .to_string();
         assert!(e.contains("rig.toml:2: field 'beta_e_pa'"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A reference outside the stroke is refused before the run, naming
+    /// the scenario file and the stroke; one that stays inside runs.
+    #[test]
+    fn a_reference_outside_the_stroke_is_refused() {
+        let dir = std::env::temp_dir().join(format!("dca-stroke-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("minus5.toml");
+        let write = |reference: &str| {
+            std::fs::write(&file, format!("duration_s = 3.0\n[reference]\n{reference}")).unwrap();
+        };
+        let name = file.display().to_string();
+        write("type = \"constant\"\nvalue = -5.0\n");
+        let e = resolve(&req(&name)).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{name}: the reference leaves the stroke -0.01 to 0.11 m (the controller's \
+                 limits x_min_m, x_max_m), to which the controller would clamp it: -5 m at \
+                 t = 0 s; give a reference within the stroke"
+            )
+        );
+        // A step that leaves it later, and a sine whose peak does.
+        write("type = \"steps\"\ntimes_s = [1.0, 2.0]\nvalues = [0.05, 0.2, 0.3]\n");
+        let e = resolve(&req(&name)).unwrap_err().to_string();
+        assert!(
+            e.contains("0.2 m at t = 1 s, furthest 0.3 m at t = 2 s"),
+            "{e}"
+        );
+        write("type = \"sine\"\nbias = 0.05\namplitude = 0.07\nfrequency_hz = 0.5\n");
+        assert!(matches!(
+            resolve(&req(&name)),
+            Err(RequestError::ReferenceOutsideStroke { .. })
+        ));
+        // Inside: the stroke's ends themselves are reachable references.
+        write("type = \"steps\"\ntimes_s = [1.0]\nvalues = [-0.01, 0.11]\n");
+        resolve(&req(&name)).unwrap();
+        // Open loop has no reference.
+        std::fs::write(
+            &file,
+            "duration_s = 1.0\n[open_loop]\ntype = \"constant\"\nvalue = 0.01\n",
+        )
+        .unwrap();
+        resolve(&req(&name)).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// Plant steps outside 1e-6 .. 1e-3 s are refused, not run for days.
+    #[test]
+    fn plant_steps_are_bounded() {
+        for dt in [1e-9, 2e-3, 0.0, -1e-4, f64::NAN, 1e308] {
+            let spec = resolve(&RunRequest {
+                dt_s: Some(dt),
+                ..req("step")
+            })
+            .unwrap();
+            let e = run(&spec).unwrap_err().to_string();
+            assert!(e.contains("must be within 1e-6 to 0.001 s"), "{dt}: {e}");
+        }
+        assert_eq!(steps_per_ms(1e-4).unwrap(), 10);
+        assert_eq!(steps_per_ms(1e-6).unwrap(), 1000);
     }
 }

@@ -10,8 +10,13 @@
 //! * a refused log's error names the file, and a line (when it gives one)
 //!   that exists in the text;
 //! * line ends do not matter: the same text with CR LF line ends gives the
-//!   same log or the same error.
+//!   same log or the same error; nor does a UTF-8 byte-order mark before it;
+//! * the gap diagnosis's reader ([`RunLog::parse_with`] with
+//!   [`LOG_STEPS`]) accepts exactly the logs whose step is within its range,
+//!   the same log; a log refused for its step is refused at its second data
+//!   row, in the column `t_s`, with the range in the message.
 
+use host_sim::gap::replay::LOG_STEPS;
 use host_sim::io::runlog::{LogError, RunLog, DT_REL_TOL, REQUIRED};
 
 use super::{line_limit, text};
@@ -63,6 +68,33 @@ fn check_err(e: &LogError, text: &str) {
     }
 }
 
+/// The gap's reader agrees with the general one but for the step's range.
+fn check_gap_reader(text: &str, any: &Result<RunLog, LogError>) {
+    let gap = RunLog::parse_with(text, FILE, &LOG_STEPS);
+    match (any, &gap) {
+        (Ok(log), Ok(g)) => {
+            assert_eq!(log, g, "the gap's reader read another log");
+            assert!(
+                LOG_STEPS.contains(log.dt_s()),
+                "step {} accepted",
+                log.dt_s()
+            );
+        }
+        (Ok(log), Err(e)) => {
+            check_err(e, text);
+            assert!(
+                !LOG_STEPS.contains(log.dt_s()),
+                "step {} refused: {e}",
+                log.dt_s()
+            );
+            assert_eq!(e.column.as_deref(), Some("t_s"), "{e}");
+            assert!(e.message.contains("outside"), "{e}");
+        }
+        (Err(_), Ok(g)) => panic!("the gap's reader accepted a refused log: {g:?}"),
+        (Err(_), Err(e)) => check_err(e, text),
+    }
+}
+
 /// The run-log harness; see the module documentation.
 pub fn runlog(data: &[u8]) {
     let text = text(data);
@@ -70,6 +102,15 @@ pub fn runlog(data: &[u8]) {
     match &r {
         Ok(log) => check_ok(log),
         Err(e) => check_err(e, &text),
+    }
+    check_gap_reader(&text, &r);
+    if !text.starts_with('\u{feff}') {
+        let bom = format!("\u{feff}{text}");
+        assert_eq!(
+            RunLog::parse(&bom, FILE),
+            r,
+            "a byte-order mark changes the result"
+        );
     }
     if !text.contains('\r') {
         let crlf = text.replace('\n', "\r\n");

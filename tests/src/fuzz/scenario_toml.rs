@@ -11,6 +11,8 @@
 //! * its `[controller]` table names a known preset and kind (the loader
 //!   checks them) and passes the configuration checks of
 //!   [`mod@super::config_toml`];
+//! * its `[plant.params]` give a rig whose every parameter lies within its
+//!   plausible range (`host_sim::model::params::check_plausible`);
 //! * its `[plant]` hose and sensor names either resolve or are refused, and
 //!   effects that pass `Effects::validate` give a finite rig: the rest state
 //!   and a few plant steps under a small command. (Found here: `validate`
@@ -22,6 +24,7 @@ use std::sync::OnceLock;
 
 use dca_core::params::PlantParams;
 use host_sim::model::effects::Effects;
+use host_sim::model::params::check_plausible;
 use host_sim::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use host_sim::model::rig::Rig;
 use host_sim::model::scenario::{tick_time_s, Command, Signal};
@@ -118,6 +121,12 @@ fn check_loaded(ls: &LoadedScenario, text: &str) {
         check_config(c, FILE, text);
     }
     let p = &ls.plant;
+    let rig = p
+        .plant_params(FILE)
+        .expect("the loader checked [plant.params]");
+    if let Err(e) = check_plausible(&rig) {
+        panic!("the loader let an implausible rig pass: {e}");
+    }
     if let Some(h) = &p.hose {
         if let Some(m) = HoseModel::by_name(h) {
             assert_eq!(m.name(), h);
