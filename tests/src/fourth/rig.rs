@@ -1,0 +1,553 @@
+//! A rig of this family: the nominal plant of plant.md section 4 with the
+//! plant-side effects of [`Effect`] hooked into its right-hand side, and the
+//! classical RK4 of section 4.2 over the extended state.
+
+use super::effects::Effect;
+use super::plant::ix::*;
+use super::plant::{Params, N_STATES};
+
+/// The extended state (the 11 nominal states first, see [`super::plant::ix`]).
+pub type State = [f64; NX];
+
+/// Universal gas constant, J/(mol K).
+pub const R_GAS: f64 = 8.314_462_618;
+/// Ambient (and initial gas) temperature, K.
+pub const T_AMB: f64 = 293.15;
+
+/// The effects of one rig, sorted by the part of the rig they act on (at
+/// most one per part).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Parts {
+    coupling: Option<Effect>,
+    drive: Option<Effect>,
+    friction: Option<Effect>,
+    leak: Option<Effect>,
+    air: Option<Effect>,
+    hose: Option<Effect>,
+    acc: Option<Effect>,
+    lvdt_filter: Option<Effect>,
+    membrane: Option<Effect>,
+    spring: Option<Effect>,
+    relief: Option<Effect>,
+    rupture: Option<Effect>,
+}
+
+/// A simulated rig: parameters, effects and the integrator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rig {
+    /// The rig's parameters (nominal unless a [`Effect::ParamScale`] applies).
+    pub p: Params,
+    /// Every effect of the rig, plant- and sensor-side.
+    pub effects: Vec<Effect>,
+    parts: Parts,
+    /// Power piston position (XP) at rest with no load, m.
+    xp_offset: f64,
+    /// Accumulator gas, mol.
+    gas_mol: f64,
+    /// Molar heat capacity at constant volume, J/(mol K).
+    cv: f64,
+}
+
+fn put(slot: &mut Option<Effect>, e: Effect) {
+    assert!(slot.is_none(), "two effects on one part of the rig: {e:?}");
+    *slot = Some(e);
+}
+
+impl Rig {
+    /// The nominal rig.
+    pub fn nominal() -> Self {
+        Self::new(&[])
+    }
+
+    /// A rig with these effects (at most one per part of the rig).
+    pub fn new(effects: &[Effect]) -> Self {
+        let mut p = Params::NOMINAL;
+        let mut parts = Parts::default();
+        for &e in effects {
+            match e {
+                Effect::ParamScale {
+                    m,
+                    beta_e,
+                    hose_c,
+                    tau_m,
+                    v_gas0,
+                    c_visc,
+                } => {
+                    p.m *= m;
+                    p.beta_e *= beta_e;
+                    p.ce0 *= hose_c;
+                    p.cf0 *= hose_c;
+                    p.cs0 *= hose_c;
+                    p.tau_m *= tau_m;
+                    p.v_gas0 *= v_gas0;
+                    p.c_visc *= c_visc;
+                }
+                Effect::BacklashPlay { .. } | Effect::BacklashHysteresisCoupling { .. } => {
+                    put(&mut parts.coupling, e)
+                }
+                Effect::DriveCurrentLimit { .. } | Effect::DriveSlewVoltage { .. } => {
+                    put(&mut parts.drive, e)
+                }
+                Effect::FrictionLuGre { .. } | Effect::FrictionKarnopp { .. } => {
+                    put(&mut parts.friction, e)
+                }
+                Effect::LeakOrifice { .. } | Effect::LeakDilatingGap { .. } => {
+                    put(&mut parts.leak, e)
+                }
+                Effect::AirDissolving { .. } | Effect::AirPocket { .. } => put(&mut parts.air, e),
+                Effect::HoseBoucWen { .. } | Effect::HoseStops { .. } => put(&mut parts.hose, e),
+                Effect::AccumulatorWall { .. } | Effect::AccumulatorConvection { .. } => {
+                    put(&mut parts.acc, e)
+                }
+                Effect::LvdtFilterDelay { .. } => put(&mut parts.lvdt_filter, e),
+                Effect::PressureMembrane { .. } => put(&mut parts.membrane, e),
+                Effect::CentringSpring { .. } => put(&mut parts.spring, e),
+                Effect::ReliefToTank { .. } => put(&mut parts.relief, e),
+                Effect::HoseRupture { .. } => put(&mut parts.rupture, e),
+                Effect::LvdtNonlinear { .. }
+                | Effect::P1Saturating { .. }
+                | Effect::LvdtDrift { .. } => {}
+            }
+        }
+        let pabs0 = p.p_acc0 + p.p_atm;
+        let mut gas_mol = pabs0 * p.v_gas0 / (R_GAS * T_AMB);
+        if let Some(Effect::AccumulatorConvection { a_vdw, b_vdw, .. }) = parts.acc {
+            // (P + a n^2/V^2)(V - n b) = n R T, by fixed-point iteration.
+            for _ in 0..100 {
+                let v = p.v_gas0;
+                gas_mol = (pabs0 + a_vdw * gas_mol * gas_mol / (v * v)) * (v - gas_mol * b_vdw)
+                    / (R_GAS * T_AMB);
+            }
+        }
+        let mut rig = Self {
+            p,
+            effects: effects.to_vec(),
+            parts,
+            xp_offset: 0.0,
+            gas_mol,
+            cv: R_GAS / (p.n_poly - 1.0),
+        };
+        rig.xp_offset = rig.rest(0.0)[XP];
+        rig
+    }
+
+    /// True when the power piston sits behind a coupling with its own state.
+    pub fn has_coupling(&self) -> bool {
+        self.parts.coupling.is_some()
+    }
+
+    fn spring_force(&self, xo: f64) -> f64 {
+        match self.parts.spring {
+            Some(Effect::CentringSpring { k, x0 }) => -k * (xo - x0),
+            _ => 0.0,
+        }
+    }
+
+    /// Free air at equilibrium with absolute pressure `pabs` (form A), m^3.
+    fn air_eq(a_tot: f64, henry: f64, pabs: f64) -> f64 {
+        (a_tot - henry * pabs).max(0.0)
+    }
+
+    /// Rest state with load `ft0` (plant.md section 4.1, extended by the
+    /// effects' own equilibria).
+    pub fn rest(&self, ft0: f64) -> State {
+        let p = &self.p;
+        let mut x = [0.0; NX];
+        x[P2] = p.p_acc0;
+        x[P1] = (p.aa2 * x[P2] + ft0 - self.spring_force(0.0)) / p.aa1;
+        x[VF1] = p.cf0 * p.l_of(x[P1]);
+        x[VS1] = p.cs0 * p.l_of(x[P1]);
+        x[VF2] = p.cf0 * p.l_of(x[P2]);
+        x[VS2] = p.cs0 * p.l_of(x[P2]);
+        x[VG] = p.v_gas0;
+        let f_hyd0 = p.power_piston_force(x[P1], x[P2]);
+        match self.parts.coupling {
+            Some(Effect::BacklashPlay {
+                half_play,
+                k_contact,
+                ..
+            }) => {
+                x[XP] = half_play.copysign(f_hyd0) + f_hyd0 / k_contact;
+            }
+            Some(Effect::BacklashHysteresisCoupling { k_lin, .. }) => x[XP] = f_hyd0 / k_lin,
+            _ => {}
+        }
+        if let Some(Effect::AirDissolving { a_tot, henry, .. }) = self.parts.air {
+            x[NA1] = Self::air_eq(a_tot, henry, x[P1] + p.p_atm);
+            x[NA2] = Self::air_eq(a_tot, henry, x[P2] + p.p_atm);
+        }
+        x[TG] = T_AMB;
+        x[TW] = T_AMB;
+        if self.parts.drive.is_some() {
+            x[IDRV] = -f_hyd0;
+        }
+        x[PM1] = x[P1];
+        x[PM2] = x[P2];
+        x
+    }
+
+    /// Absolute accumulator gas pressure, Pa.
+    pub fn gas_pabs(&self, x: &State) -> f64 {
+        let p = &self.p;
+        let vg = x[VG];
+        match self.parts.acc {
+            Some(Effect::AccumulatorWall { .. }) => self.gas_mol * R_GAS * x[TG] / vg,
+            Some(Effect::AccumulatorConvection { a_vdw, b_vdw, .. }) => {
+                let n = self.gas_mol;
+                n * R_GAS * x[TG] / (vg - n * b_vdw) - a_vdw * n * n / (vg * vg)
+            }
+            _ => (p.p_acc0 + p.p_atm) * (p.v_gas0 / vg).powf(p.n_poly),
+        }
+    }
+
+    /// Right-hand side at time `t` with the inputs held (plant.md section 4,
+    /// plus the effects).
+    pub fn rhs(&self, t: f64, x: &State, v_cmd: f64, ft: f64) -> State {
+        let p = &self.p;
+        let mut d = [0.0; NX];
+        let (xi, vi, xo, vo, p1, p2) = (x[XI], x[VI], x[XO], x[VO], x[P1], x[P2]);
+        let vc = v_cmd.clamp(-p.v_max, p.v_max);
+        let f_hyd = p.power_piston_force(p1, p2);
+
+        // Power piston, directly on the screw or behind a coupling.
+        let (mut xp, mut vp, mut f_screw) = (xi, vi, f_hyd);
+        if let Some(c) = self.parts.coupling {
+            let del = x[XP] - xi;
+            let ddel = x[VP] - vi;
+            let (f_c, m_piston, c_piston) = match c {
+                Effect::BacklashPlay {
+                    half_play,
+                    k_contact,
+                    c_contact,
+                    m_piston,
+                    c_piston,
+                } => {
+                    let f = if del > half_play {
+                        (-(k_contact * (del - half_play) + c_contact * ddel)).min(0.0)
+                    } else if del < -half_play {
+                        (-(k_contact * (del + half_play) + c_contact * ddel)).max(0.0)
+                    } else {
+                        0.0
+                    };
+                    (f, m_piston, c_piston)
+                }
+                Effect::BacklashHysteresisCoupling {
+                    k_lin,
+                    sigma,
+                    f_dahl,
+                    c_coupling,
+                    m_piston,
+                    c_piston,
+                } => {
+                    let z = x[ZC];
+                    d[ZC] = sigma * (1.0 - z / f_dahl * ddel.signum()) * ddel;
+                    (-(k_lin * del + z + c_coupling * ddel), m_piston, c_piston)
+                }
+                _ => unreachable!(),
+            };
+            d[XP] = x[VP];
+            d[VP] = (f_c + f_hyd - c_piston * x[VP]) / m_piston;
+            xp = x[XP] - self.xp_offset;
+            vp = x[VP];
+            f_screw = -f_c;
+        }
+
+        // Servo drive.
+        d[XI] = vi;
+        d[VI] = (vc - vi) / p.tau_m;
+        match self.parts.drive {
+            Some(Effect::DriveCurrentLimit {
+                m_eq,
+                f_max,
+                kv,
+                ki,
+                c_screw,
+            }) => {
+                let vref = x[VREF];
+                let dvref = (vc - vref) / p.tau_m;
+                let f_cmd = m_eq * dvref + kv * (vref - vi) + x[IDRV];
+                let f_m = f_cmd.clamp(-f_max, f_max);
+                d[VREF] = dvref;
+                d[IDRV] = ki * (vref - vi);
+                d[VI] = (f_m + f_screw - c_screw * vi) / m_eq;
+            }
+            Some(Effect::DriveSlewVoltage { a_max, f_stall }) => {
+                let motoring = if vc == 0.0 {
+                    0.0
+                } else {
+                    (-f_screw * vc.signum()).max(0.0)
+                };
+                let v_top = p.v_max * (1.0 - motoring / f_stall).max(0.1);
+                let vce = vc.clamp(-v_top, v_top);
+                d[VI] = ((vce - vi) / p.tau_m).clamp(-a_max, a_max);
+            }
+            _ => {}
+        }
+
+        // Actuating piston.
+        let mut fs = 0.0;
+        if xo > p.x_max {
+            fs = -p.k_stop * (xo - p.x_max) - if vo > 0.0 { p.c_stop * vo } else { 0.0 };
+        }
+        if xo < p.x_min {
+            fs = -p.k_stop * (xo - p.x_min) - if vo < 0.0 { p.c_stop * vo } else { 0.0 };
+        }
+        let f_app = p.aa1 * p1 - p.aa2 * p2 - ft - p.c_visc * vo + fs + self.spring_force(xo);
+        let f_fr = match self.parts.friction {
+            Some(Effect::FrictionLuGre {
+                fc0,
+                kp,
+                ratio_s,
+                vs,
+                sigma0,
+                sigma1,
+            }) => {
+                let fc = fc0 + kp * (p1.max(0.0) + p2.max(0.0));
+                let g = fc + (ratio_s - 1.0) * fc * (-(vo / vs) * (vo / vs)).exp();
+                let z = x[ZF];
+                let dz = vo - sigma0 * vo.abs() * z / g;
+                d[ZF] = dz;
+                -(sigma0 * z + sigma1 * dz)
+            }
+            Some(Effect::FrictionKarnopp {
+                f_stat,
+                fc_ext,
+                fc_ret,
+                v_eps,
+                c_stick,
+            }) => {
+                if vo.abs() < v_eps {
+                    if f_app.abs() <= f_stat {
+                        -f_app - c_stick * vo
+                    } else {
+                        -f_stat.copysign(f_app)
+                    }
+                } else if vo > 0.0 {
+                    -fc_ext
+                } else {
+                    fc_ret
+                }
+            }
+            _ => 0.0,
+        };
+        d[XO] = vo;
+        d[VO] = (f_app + f_fr) / p.m;
+
+        // Accumulator.
+        let vg = x[VG];
+        let pg_abs = self.gas_pabs(x);
+        let qa = p.g_acc * (pg_abs - p.p_atm - p2);
+        d[VG] = qa;
+        let cg = self.gas_mol * self.cv;
+        match self.parts.acc {
+            Some(Effect::AccumulatorWall {
+                tau_gw,
+                wall_ratio,
+                tau_wa,
+            }) => {
+                let (tg, tw) = (x[TG], x[TW]);
+                let h = cg / tau_gw;
+                let cw = wall_ratio * cg;
+                d[TG] = (-pg_abs * qa + h * (tw - tg)) / cg;
+                d[TW] = (h * (tg - tw) + cw / tau_wa * (T_AMB - tw)) / cw;
+            }
+            Some(Effect::AccumulatorConvection { k_nc, b_vdw, .. }) => {
+                let n = self.gas_mol;
+                let tg = x[TG];
+                let dt = T_AMB - tg;
+                let heat = k_nc * dt.abs().cbrt() * dt;
+                d[TG] = (-(n * R_GAS * tg / (vg - n * b_vdw)) * qa + heat) / cg;
+            }
+            _ => {}
+        }
+
+        // Flows into the lines.
+        let mut q1 = p.ap1 * vp - p.aa1 * vo;
+        let mut q2 = p.aa2 * vo - p.ap2 * vp + qa;
+        let dp12 = p1 - p2;
+        let q12 = match self.parts.leak {
+            Some(Effect::LeakOrifice { k, v_open, p_lam }) => {
+                k * (1.0 + vo.abs() / v_open) * dp12 / (dp12.abs() + p_lam).sqrt()
+            }
+            Some(Effect::LeakDilatingGap { g0, p_dil }) => {
+                g0 * dp12 * (1.0 + dp12.abs() / p_dil).powi(3)
+            }
+            _ => 0.0,
+        };
+        q1 -= q12;
+        q2 += q12;
+        if let Some(Effect::ReliefToTank { p_crack, g }) = self.parts.relief {
+            q1 -= g * (p1 - p_crack).max(0.0);
+        }
+        if let Some(Effect::HoseRupture { t0, g_rate }) = self.parts.rupture {
+            q2 -= g_rate * (t - t0).max(0.0) * p2.max(0.0);
+        }
+
+        // Hose relaxation (nominal).
+        d[VF1] = (p.cf0 * p.l_of(p1) - x[VF1]) / p.tau_f;
+        d[VS1] = (p.cs0 * p.l_of(p1) - x[VS1]) / p.tau_s;
+        d[VF2] = (p.cf0 * p.l_of(p2) - x[VF2]) / p.tau_f;
+        d[VS2] = (p.cs0 * p.l_of(p2) - x[VS2]) / p.tau_s;
+
+        // Pressures: continuity of each line, with the effects' extra
+        // compliances and flows.
+        let lines = [
+            (P1, q1 - d[VF1] - d[VS1], p.v1(xp, xo), NA1, BW1, ST1),
+            (P2, q2 - d[VF2] - d[VS2], p.v2(xp, xo), NA2, BW2, ST2),
+        ];
+        for (j, (ip, q, v, ina, ibw, ist)) in lines.into_iter().enumerate() {
+            let pj = x[ip];
+            let pabs = (pj + p.p_atm).max(0.05 * p.p_atm);
+            let mut num = q;
+            let mut den = v / p.beta_e + p.ce0 * p.f(pj);
+            match self.parts.air {
+                Some(Effect::AirDissolving {
+                    a_tot,
+                    henry,
+                    tau_release,
+                    tau_dissolve,
+                }) => {
+                    let n = x[ina];
+                    let neq = Self::air_eq(a_tot, henry, pabs);
+                    let tau = if neq > n { tau_release } else { tau_dissolve };
+                    let dn = (neq - n) / tau;
+                    d[ina] = dn;
+                    num += p.p_atm / pabs * dn;
+                    den += n * p.p_atm / (pabs * pabs);
+                }
+                Some(Effect::AirPocket {
+                    vb_ref,
+                    p_ref_abs,
+                    kappa,
+                }) if j == 0 => {
+                    let vb = vb_ref * (p_ref_abs / pabs).powf(1.0 / kappa);
+                    den += vb / (kappa * pabs);
+                }
+                _ => {}
+            }
+            let up = num >= 0.0;
+            match self.parts.hose {
+                Some(Effect::HoseBoucWen {
+                    c_h,
+                    beta,
+                    gamma,
+                    n,
+                    ..
+                }) => {
+                    let z = x[ibw];
+                    let s = if up == (z >= 0.0) { 1.0 } else { -1.0 };
+                    let fac = (1.0 - z.abs().powf(n) * (beta * s + gamma)).max(0.0);
+                    den += c_h * fac;
+                }
+                Some(Effect::HoseStops { r, c }) => {
+                    for i in 0..5 {
+                        let s = x[ist + i];
+                        if (up && s < r[i]) || (!up && s > -r[i]) {
+                            den += c[i];
+                        }
+                    }
+                }
+                _ => {}
+            }
+            let dp = num / den;
+            d[ip] = dp;
+            match self.parts.hose {
+                Some(Effect::HoseBoucWen {
+                    p_z,
+                    beta,
+                    gamma,
+                    n,
+                    ..
+                }) => {
+                    let z = x[ibw];
+                    let s = if up == (z >= 0.0) { 1.0 } else { -1.0 };
+                    let fac = (1.0 - z.abs().powf(n) * (beta * s + gamma)).max(0.0);
+                    d[ibw] = dp / p_z * fac;
+                }
+                Some(Effect::HoseStops { r, .. }) => {
+                    for i in 0..5 {
+                        let s = x[ist + i];
+                        if (up && s < r[i]) || (!up && s > -r[i]) {
+                            d[ist + i] = dp;
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+
+        // Sensor dynamics driven by the plant.
+        if let Some(Effect::LvdtFilterDelay { f_c_hz, .. }) = self.parts.lvdt_filter {
+            let w = 2.0 * std::f64::consts::PI * f_c_hz;
+            d[LV1] = x[LV2];
+            d[LV2] = w * w * (xo - x[LV1]) - std::f64::consts::SQRT_2 * w * x[LV2];
+        }
+        if let Some(Effect::PressureMembrane { f_n_hz, zeta }) = self.parts.membrane {
+            let w = 2.0 * std::f64::consts::PI * f_n_hz;
+            for (im, imd, pj) in [(PM1, PM1D, p1), (PM2, PM2D, p2)] {
+                d[im] = x[imd];
+                d[imd] = w * w * (pj - x[im]) - 2.0 * zeta * w * x[imd];
+            }
+        }
+        d
+    }
+
+    /// One RK4 step of `p.dt` from `x` at time `t` with the inputs held, after
+    /// the ball-screw software limit of plant.md section 4.2.
+    pub fn step(&self, t: f64, x: &State, v_cmd: f64, ft: f64) -> State {
+        let p = &self.p;
+        let h = p.dt;
+        let v = if (x[XI] >= p.x_max && v_cmd > 0.0) || (x[XI] <= p.x_min && v_cmd < 0.0) {
+            0.0
+        } else {
+            v_cmd
+        };
+        let add = |a: &State, k: &State, s: f64| {
+            let mut o = *a;
+            for i in 0..NX {
+                o[i] += s * k[i];
+            }
+            o
+        };
+        let k1 = self.rhs(t, x, v, ft);
+        let k2 = self.rhs(t, &add(x, &k1, h / 2.0), v, ft);
+        let k3 = self.rhs(t, &add(x, &k2, h / 2.0), v, ft);
+        let k4 = self.rhs(t, &add(x, &k3, h), v, ft);
+        let mut o = *x;
+        for i in 0..NX {
+            o[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        // Rate-independent elements stay inside their yield sets.
+        if let Some(Effect::HoseStops { r, .. }) = self.parts.hose {
+            for i in 0..5 {
+                o[ST1 + i] = o[ST1 + i].clamp(-r[i], r[i]);
+                o[ST2 + i] = o[ST2 + i].clamp(-r[i], r[i]);
+            }
+        }
+        if let Some(Effect::HoseBoucWen { .. }) = self.parts.hose {
+            o[BW1] = o[BW1].clamp(-1.0, 1.0);
+            o[BW2] = o[BW2].clamp(-1.0, 1.0);
+        }
+        if let Some(Effect::BacklashHysteresisCoupling { f_dahl, .. }) = self.parts.coupling {
+            o[ZC] = o[ZC].clamp(-f_dahl, f_dahl);
+        }
+        o[NA1] = o[NA1].max(0.0);
+        o[NA2] = o[NA2].max(0.0);
+        o
+    }
+
+    /// The nominal part of a state (plant.md section 2).
+    pub fn nominal_part(x: &State) -> [f64; N_STATES] {
+        let mut o = [0.0; N_STATES];
+        o.copy_from_slice(&x[..N_STATES]);
+        o
+    }
+
+    /// An extended state whose nominal part is `x` and whose effect states
+    /// are those of this rig at rest.
+    pub fn extend(&self, x: &[f64; N_STATES]) -> State {
+        let mut o = self.rest(0.0);
+        o[..N_STATES].copy_from_slice(x);
+        o
+    }
+}
