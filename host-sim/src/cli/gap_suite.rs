@@ -29,11 +29,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .enumerate()
         .filter(|(_, c)| a.only.is_empty() || a.only.iter().any(|o| c.name.contains(o.as_str())))
         .unzip();
-    anyhow::ensure!(
-        !chosen.is_empty(),
-        "no case of the suite matches --only {:?}; the cases are listed in docs/gap.md",
-        a.only
-    );
+    if chosen.is_empty() {
+        let names: Vec<String> = cases().into_iter().map(|c| c.name).collect();
+        anyhow::bail!(
+            "no case of the suite matches --only {:?}; the cases are: {}",
+            a.only,
+            names.join(", ")
+        );
+    }
     let logs = |i: usize, c: &_| suite_logs(index[i] + a.seed_shift as usize, c);
     let res = score(&chosen, logs, &Default::default(), true);
     let table = markdown(&res);

@@ -87,6 +87,18 @@ pub struct Fitter<'a> {
     pub dt_s: f64,
     /// Objective evaluations per candidate fit (beyond the coarse grid).
     pub max_evals: usize,
+    /// Starting points of the learned general families from the closures
+    /// of their equations ([`super::isolate`]), in each family's units.
+    pub learned: LearnedStarts,
+}
+
+/// Starting points of the learned general families (their least-squares
+/// values), from the structural closures; `None`: start from the nominal
+/// model.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LearnedStarts {
+    /// The coupling's deflection increments (the general family's fit).
+    pub screw: Option<Vec<f64>>,
 }
 
 impl Fitter<'_> {
@@ -140,19 +152,20 @@ impl Fitter<'_> {
         self.fit_effects(&Effects::NONE, &[kind], grid_size(kind) + self.max_evals)
     }
 
-    /// Every effect fitted on the fit runs and evaluated on the check runs
-    /// (in parallel), ranked by the shrink on the fit runs, best first.
+    /// The effects `kinds` fitted on the fit runs and evaluated on the check
+    /// runs (in parallel), ranked by the shrink on the fit runs, best first.
     /// `before_*` are the nominal model's gaps; `explains(fit_after,
     /// check_after)` is the verdict policy's test of a fitted model (where a
     /// named form fails it, the general family of its part is fitted).
     pub fn rank(
         &self,
+        kinds: &[EffectKind],
         before_fit: f64,
         before_check: f64,
         explains: &(dyn Fn(f64, f64) -> bool + Sync),
         progress: &Progress,
     ) -> Vec<CandidateFit> {
-        let mut cands: Vec<CandidateFit> = EffectKind::ALL
+        let mut cands: Vec<CandidateFit> = kinds
             .par_iter()
             .map(|&k| {
                 let (mut f, mut form, estimates, plausible) = self.fit_kind(k);
@@ -341,12 +354,17 @@ impl Fitter<'_> {
         &self,
         n: usize,
         with: &(dyn Fn(&[f64]) -> Effects + Sync),
+        start: Option<&[f64]>,
         before_fit: f64,
     ) -> Option<(Effects, f64)> {
         let f = |x: &[f64]| lsq::residuals(self.fit, self.base, &with(x), self.dt_s);
+        let x0: Vec<f64> = match start {
+            Some(s) if s.len() == n => s.iter().map(|v| v.clamp(0.0, 50.0)).collect(),
+            _ => vec![0.0; n],
+        };
         let r = lsq::levenberg_marquardt(
             &f,
-            &vec![0.0; n],
+            &x0,
             None,
             &vec![0.1; n],
             &vec![0.0; n],
@@ -368,7 +386,7 @@ impl Fitter<'_> {
             }),
             ..Effects::NONE
         };
-        self.fit_learned(SPECTRUM_YIELDS_PA.len(), &with, before_fit)
+        self.fit_learned(SPECTRUM_YIELDS_PA.len(), &with, None, before_fit)
     }
 
     /// The seals' friction in its general family ([`FrictionMap`]): the
@@ -382,7 +400,7 @@ impl Fitter<'_> {
             }),
             ..Effects::NONE
         };
-        self.fit_learned(7, &with, before_fit)
+        self.fit_learned(7, &with, None, before_fit)
     }
 
     /// The seals' leakage in its general family ([`LeakageMap`]): the flow
@@ -396,7 +414,7 @@ impl Fitter<'_> {
             }),
             ..Effects::NONE
         };
-        self.fit_learned(6, &with, before_fit)
+        self.fit_learned(6, &with, None, before_fit)
     }
 
     /// The accumulator's general family ([`GasRelaxation`]): the weights of
@@ -419,7 +437,7 @@ impl Fitter<'_> {
                 ..Effects::NONE
             }
         };
-        self.fit_learned(GAS_TAUS_S.len(), &with, before_fit)
+        self.fit_learned(GAS_TAUS_S.len(), &with, None, before_fit)
     }
 
     /// The coupling's general family ([`ScrewMap`]): the deflection's
@@ -439,7 +457,7 @@ impl Fitter<'_> {
                 ..Effects::NONE
             }
         };
-        self.fit_learned(6, &with, before_fit)
+        self.fit_learned(6, &with, self.learned.screw.as_deref(), before_fit)
     }
 
     /// Fit one candidate on the fit runs: its effects and gap, the form that

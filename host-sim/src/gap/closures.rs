@@ -20,7 +20,7 @@ use super::equations::{noise_of, residuals, with_terms_over, Residual, Residuals
 use super::lsq::{dot, solve as gauss};
 use super::stats::mean;
 use crate::io::runlog::RunLog;
-use crate::model::effects::{CalChannel, EffectKind, ParameterRatios};
+use crate::model::effects::{CalChannel, EffectKind, ParameterRatios, SCREW_FORCES_N};
 use crate::model::plant::Plant;
 
 /// Where a closure adds its term: an equation of the model, a sensor
@@ -95,6 +95,10 @@ pub enum Dependence {
     Speed,
     /// The force the coupling carries (relative displacement).
     Force,
+    /// The force the coupling carries, with a loop (friction in it).
+    ForceHistory,
+    /// A flow out of the line to the tank, growing with its pressure.
+    Outflow,
     /// The load's position.
     Position,
     /// The servo's requested acceleration, load force and speed.
@@ -118,6 +122,10 @@ impl Dependence {
             Self::Relaxation => "time (a relaxation)",
             Self::Speed => "speed",
             Self::Force => "the force it carries (relative displacement)",
+            Self::ForceHistory => {
+                "the force it carries, with a loop (relative displacement with friction)"
+            }
+            Self::Outflow => "its pressure, as a flow out of the line (to the tank)",
             Self::Position => "position",
             Self::Drive => "the drive's demand (acceleration, force, speed)",
             Self::Signal => "the signal itself",
@@ -135,7 +143,7 @@ pub fn naming(site: Site, dep: Dependence) -> Option<EffectKind> {
     match (site, dep) {
         (Site::Parameters, _) => Some(K::Parameters),
         (Site::Servo, D::Drive) => Some(K::MotorLimit),
-        (Site::CouplingIn, D::Force) => Some(K::Backlash),
+        (Site::CouplingIn, D::Force | D::ForceHistory) => Some(K::Backlash),
         (Site::Line1 | Site::Line2, D::Pressure) => Some(K::Air),
         (Site::Line1 | Site::Line2, D::PressureHistory) => Some(K::HoseHysteresis),
         (Site::Line2, D::Relaxation) => Some(K::AccumulatorThermal),
@@ -159,6 +167,15 @@ pub struct Closure {
     pub dep: Dependence,
 }
 
+impl Fitted {
+    /// The residual whose excess it explains most of on the fit runs.
+    pub fn dominant(&self) -> usize {
+        (0..4)
+            .max_by(|a, b| self.fit_per_residual[*a].total_cmp(&self.fit_per_residual[*b]))
+            .unwrap_or(0)
+    }
+}
+
 impl Closure {
     /// The identifier it names ([`naming`]).
     pub fn names(self) -> Option<EffectKind> {
@@ -174,51 +191,30 @@ impl Closure {
 /// Every closure tried, in a fixed order.
 pub fn library() -> Vec<Closure> {
     use Dependence as D;
+    let at = |site, dep| Closure { site, dep };
     let mut v = vec![
-        Closure {
-            site: Site::Parameters,
-            dep: D::OwnTerms,
-        },
-        Closure {
-            site: Site::Servo,
-            dep: D::Drive,
-        },
-        Closure {
-            site: Site::CouplingIn,
-            dep: D::Force,
-        },
-        Closure {
-            site: Site::Between,
-            dep: D::PressureDifference,
-        },
+        at(Site::Parameters, D::OwnTerms),
+        at(Site::Servo, D::Drive),
+        at(Site::CouplingIn, D::Force),
+        at(Site::CouplingIn, D::ForceHistory),
+        at(Site::Between, D::PressureDifference),
     ];
     for site in [Site::Line1, Site::Line2] {
         for dep in [D::Pressure, D::PressureHistory, D::Relaxation] {
-            v.push(Closure { site, dep });
+            v.push(at(site, dep));
         }
     }
-    v.push(Closure {
-        site: Site::Force,
-        dep: D::Speed,
-    });
-    v.push(Closure {
-        site: Site::Force,
-        dep: D::Position,
-    });
-    for c in CalChannel::ALL {
-        v.push(Closure {
-            site: Site::Sensor(c),
-            dep: D::Signal,
-        });
-        v.push(Closure {
-            site: Site::Sensor(c),
-            dep: D::Rate,
-        });
+    // A flow out of line 2 alone (to the tank). Out of line 1, such a flow
+    // cannot be told from a leak into line 2: the accumulator takes up what
+    // line 2 receives with a few kilopascals.
+    v.push(at(Site::Line2, D::Outflow));
+    v.push(at(Site::Force, D::Speed));
+    v.push(at(Site::Force, D::Position));
+    for ch in CalChannel::ALL {
+        v.push(at(Site::Sensor(ch), D::Signal));
+        v.push(at(Site::Sensor(ch), D::Rate));
     }
-    v.push(Closure {
-        site: Site::Clock,
-        dep: D::Drift,
-    });
+    v.push(at(Site::Clock, D::Drift));
     v
 }
 
@@ -267,6 +263,38 @@ impl Knots {
             position: xo,
         }
     }
+}
+
+/// Knots of the servo's table over the acceleration the nominal speed loop
+/// asks for, `(v_cmd - v) / tau`, m/s^2 (up to 10 for a full-speed step
+/// from rest, 20 for a reversal).
+pub const SERVO_ACCEL_MPS2: [f64; 7] = [-20.0, -8.0, -3.0, 0.0, 3.0, 8.0, 20.0];
+/// Knots of the servo's table over the hydraulic force on the power piston, N.
+pub const SERVO_FORCE_N: [f64; 3] = [-1000.0, 500.0, 2000.0];
+/// Knots of the servo's table over the speed's magnitude, m/s.
+pub const SERVO_SPEED_MPS: [f64; 3] = [0.0, 0.05, 0.1];
+/// Cells of the servo's table (7 x 3 x 3).
+pub const SERVO_CELLS: usize = 63;
+
+/// The servo closure's basis: the weight of each cell of its table (a
+/// correction of the delivered acceleration over the asked acceleration,
+/// the load and the speed, interpolated between the knots and flat beyond)
+/// at the asked acceleration `a_mps2`, the force `f_n` and the speed
+/// `v_mps`. The weights sum to one.
+pub fn servo_cells(a_mps2: f64, f_n: f64, v_mps: f64) -> [f64; SERVO_CELLS] {
+    let at = |knots: &[f64], x: f64| {
+        tents(&[x], knots)
+            .into_iter()
+            .map(|t| t[0])
+            .collect::<Vec<f64>>()
+    };
+    let (ta, tf, tv) = (
+        at(&SERVO_ACCEL_MPS2, a_mps2),
+        at(&SERVO_FORCE_N, f_n),
+        at(&SERVO_SPEED_MPS, v_mps.abs()),
+    );
+    let (na, nf) = (ta.len(), tf.len());
+    std::array::from_fn(|k| ta[k % na] * tf[(k / na) % nf] * tv[k / (na * nf)])
 }
 
 /// Tents (a partition of unity) over increasing `knots`: flat beyond the
@@ -471,12 +499,30 @@ fn block_means(v: &[f64], n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Whether the weights of closure `c` form one ordered chain (tents over
-/// one variable, plays over widths, lags over time constants): their fit is
-/// kept smooth along it ([`ROUGHNESS`]).
-fn chained(c: Closure) -> bool {
-    !matches!(c.site, Site::Parameters | Site::Servo | Site::Clock)
+/// The runs of weights of closure `c` (of `p` in all) that form ordered
+/// chains (tents over one variable, plays over widths, lags over time
+/// constants): their fit is kept smooth along each ([`ROUGHNESS`]). A
+/// closure's extra terms (a linear compliance beside the plays, a
+/// pressure-dependent share beside the tents over speed or pressure
+/// difference) stand apart.
+fn chains(c: Closure, p: usize) -> Vec<std::ops::Range<usize>> {
+    match (c.site, c.dep) {
+        (Site::Parameters | Site::Servo | Site::Clock, _) => Vec::new(),
+        // The static compressibility's tents, then the plays.
+        (Site::Line1 | Site::Line2, Dependence::PressureHistory) => {
+            vec![0..LINE_TENTS_PA.len(), LINE_TENTS_PA.len()..p]
+        }
+        // One chain each (a range is a chain, not a list of indices).
+        (Site::CouplingIn, Dependence::ForceHistory) => std::iter::once(1..p).collect(),
+        (Site::Between, _) | (Site::Force, Dependence::Speed) => {
+            std::iter::once(0..p.saturating_sub(1)).collect()
+        }
+        _ => std::iter::once(0..p).collect(),
+    }
 }
+
+/// Knots of a line's static compressibility over its pressure, Pa.
+pub const LINE_TENTS_PA: [f64; 7] = [0.0, 0.5e6, 1e6, 2e6, 3e6, 4e6, 6e6];
 
 /// Weight of the roughness penalty: a second difference of the weights
 /// along a chain costs this share of what the same weight change does to
@@ -515,8 +561,9 @@ pub fn columns(c: Closure, run: &RunData, plant: &Plant, knots: &Knots) -> Vec<V
             })
             .collect(),
         (Site::Servo, _) => {
-            // The speed loop's request, the piston's load and speed.
-            let tau = p.tau_m_s;
+            // The table's cells ([`servo_cells`]) at each row: the
+            // acceleration the nominal loop asks from the interval's mean
+            // speed, the load and the speed.
             let vbar: Vec<f64> = (0..n)
                 .map(|k| {
                     if k + 1 < n {
@@ -526,38 +573,43 @@ pub fn columns(c: Closure, run: &RunData, plant: &Plant, knots: &Knots) -> Vec<V
                     }
                 })
                 .collect();
-            let req: Vec<f64> = (0..n)
-                .map(|k| (s.vc[k].clamp(-p.v_max_mps, p.v_max_mps) - vbar[k]) / tau)
+            let phi: Vec<[f64; SERVO_CELLS]> = (0..n)
+                .map(|k| {
+                    let a = (s.vc[k].clamp(-p.v_max_mps, p.v_max_mps) - vbar[k]) / p.tau_m_s;
+                    servo_cells(a, f_piston[k], vbar[k])
+                })
                 .collect();
-            let mut fs = Vec::new();
-            for c in [0.5, 2.0, 5.0] {
-                let up: Vec<f64> = req.iter().map(|a| (a - c).max(0.0)).collect();
-                let dn: Vec<f64> = req.iter().map(|a| (a + c).min(0.0)).collect();
-                fs.push(up.iter().zip(&f_piston).map(|(a, f)| a * f / 1e3).collect());
-                fs.push(dn.iter().zip(&f_piston).map(|(a, f)| a * f / 1e3).collect());
-                fs.push(up);
-                fs.push(dn);
-            }
-            let up_v: Vec<f64> = req
-                .iter()
-                .zip(&vbar)
-                .map(|(a, v)| a.max(0.0) * v.abs() / 0.1)
+            let fs: Vec<Vec<f64>> = (0..SERVO_CELLS)
+                .map(|j| phi.iter().map(|f| f[j]).collect())
                 .collect();
-            let dn_v: Vec<f64> = req
-                .iter()
-                .zip(&vbar)
-                .map(|(a, v)| a.min(0.0) * v.abs() / 0.1)
-                .collect();
-            fs.push(up_v);
-            fs.push(dn_v);
             let build = |f: Vec<f64>| Terms {
                 servo_mps2: Some(f),
                 ..Terms::default()
             };
             many(&build, fs, 1.0)
         }
+        (Site::CouplingIn, Dependence::ForceHistory) => {
+            // A spring beside plays of several widths: a coupling whose
+            // deflection lags the force by friction.
+            let f0 = f_piston[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
+            let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| y - f0).collect() };
+            let fs: Vec<Vec<f64>> = std::iter::once(rel(f_piston.clone()))
+                .chain(
+                    [10.0, 30.0, 100.0, 300.0, 1000.0]
+                        .iter()
+                        .map(|r| rel(play(&f_piston, *r))),
+                )
+                .collect();
+            let build = |f: Vec<f64>| Terms {
+                coupling_m: Some(f),
+                ..Terms::default()
+            };
+            many(&build, fs, 1e-8)
+        }
         (Site::CouplingIn, _) => {
-            let fs = odd_tents(&f_piston, &[0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0]);
+            // At the coupling's general family's knots (its start, see
+            // [`super::diagnose`]).
+            let fs = odd_tents(&f_piston, &SCREW_FORCES_N);
             let build = |f: Vec<f64>| Terms {
                 coupling_m: Some(f),
                 ..Terms::default()
@@ -591,27 +643,41 @@ pub fn columns(c: Closure, run: &RunData, plant: &Plant, knots: &Knots) -> Vec<V
                     }
                 })
                 .collect();
+            let hose = p.hose;
+            let lp: Vec<f64> = pj.iter().map(|x| hose.log_pressure(*x)).collect();
+            let lp0 = lp[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
+            let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| (y - lp0) * 1e-13).collect() };
             let p0 = pj[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
-            let fs: Vec<Vec<f64>> = match dep {
-                Dependence::Pressure => tents(pj, &[0.0, 0.5e6, 1e6, 2e6, 3e6, 4e6, 6e6])
+            // A compressibility of any shape over the pressure, times the
+            // line's oil volume, taken up along the run.
+            let static_part = || -> Vec<Vec<f64>> {
+                tents(pj, &LINE_TENTS_PA)
                     .into_iter()
                     .map(|w| compressed(pj, &w, &vol).iter().map(|v| v / 1e9).collect())
+                    .collect()
+            };
+            let fs: Vec<Vec<f64>> = match dep {
+                Dependence::Pressure => static_part(),
+                // The static compressibility beside plays of several widths
+                // on the pressure (a Prandtl-Ishlinskii loop): the loop
+                // must explain what a static law cannot.
+                Dependence::PressureHistory => static_part()
+                    .into_iter()
+                    .chain(
+                        [1e4, 3e4, 1e5, 3e5, 1e6]
+                            .iter()
+                            .map(|r| play(pj, *r).iter().map(|y| (y - p0) * 1e-13).collect()),
+                    )
                     .collect(),
-                Dependence::PressureHistory => [1e4, 3e4, 1e5, 3e5, 1e6]
-                    .iter()
-                    .map(|r| play(pj, *r).iter().map(|y| (y - p0) * 1e-13).collect())
-                    .chain(std::iter::once(
-                        pj.iter().map(|y| (y - p0) * 1e-13).collect(),
-                    ))
+                // A flow out of the line of any shape over its pressure,
+                // integrated into the volume lost.
+                Dependence::Outflow => tents(pj, &[0.0, 1e6, 2e6, 3e6, 4e6, 6e6])
+                    .into_iter()
+                    .map(|q| integral(&q, h).iter().map(|v| v * 1e-7).collect())
                     .collect(),
                 _ => [0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0]
                     .iter()
-                    .map(|tau| {
-                        lagged(pj, h, *tau)
-                            .iter()
-                            .map(|y| (y - p0) * 1e-13)
-                            .collect()
-                    })
+                    .map(|tau| rel(lagged(&lp, h, *tau)))
                     .collect(),
             };
             let build = |f: Vec<f64>| {
@@ -724,15 +790,27 @@ pub struct Fitted {
     pub check_explained: f64,
     /// Number of weights.
     pub weights: usize,
+    /// The fitted weights, in the order of the closure's basis (each the
+    /// SI amount of its basis function in the equation's term).
+    #[serde(skip)]
+    pub w: Vec<f64>,
     /// What it leaves of the check runs' excess, per block (in units of
     /// the noise's power; 0: the noise alone).
     pub check_left: f64,
     /// What it leaves of the fit runs' excess, per block, penalised as
     /// `fit_explained`.
     pub fit_left: f64,
+    /// What it leaves of the excess of all runs, per block: the fit runs'
+    /// (penalised) and the check runs' together. Closures are ranked by it:
+    /// where the check runs show the violation, their excess weighs in as
+    /// much as the fit runs'; where they do not, every closure leaves them
+    /// at their noise and the fit runs decide.
+    pub left: f64,
     /// Share of the explained excess per residual (servo, line1, line2,
     /// force) on the check runs.
     pub per_residual: [f64; 4],
+    /// The same on the fit runs.
+    pub fit_per_residual: [f64; 4],
 }
 
 /// The residuals' excess over their noise per residual: sum over blocks of
@@ -754,6 +832,11 @@ fn offsets(nb: usize) -> Vec<Vec<f64>> {
         })
         .collect()
 }
+
+/// The ridge on the servo table's cells in its least-squares fit: a
+/// correction of 1 m/s^2 in a cell costs as much as this many noise units
+/// of one 10 ms block.
+pub const SERVO_RIDGE: f64 = 3.0;
 
 /// Least squares `y ~ X w` (columns `x`): each column scaled to unit norm,
 /// lightly ridged (1e-9 on the unit diagonal), columns of zeros left at 0;
@@ -845,15 +928,29 @@ pub fn fit_closure(
     design.extend(offs);
     // The roughness penalty: rows of second differences along the chain,
     // in units of the columns' mean norm.
-    if chained(c) && p >= 3 {
-        let scale = ROUGHNESS.sqrt() * x.iter().map(|v| dot(v, v).sqrt()).sum::<f64>() / p as f64;
-        for i in 1..p - 1 {
+    for ch in chains(c, p) {
+        if ch.len() < 3 {
+            continue;
+        }
+        let scale = ROUGHNESS.sqrt() * x[ch.clone()].iter().map(|v| dot(v, v).sqrt()).sum::<f64>()
+            / ch.len() as f64;
+        for i in ch.start + 1..ch.end - 1 {
             for (j, col) in design.iter_mut().enumerate() {
                 col.push(match j {
                     _ if j == i - 1 || j == i + 1 => scale,
                     _ if j == i => -2.0 * scale,
                     _ => 0.0,
                 });
+            }
+            y.push(0.0);
+        }
+    }
+    // The servo's table: cells the runs visit little are held near zero by
+    // a ridge in its own units (m/s^2), not its columns' norms.
+    if c.site == Site::Servo {
+        for i in 0..p {
+            for (j, col) in design.iter_mut().enumerate() {
+                col.push(if j == i { SERVO_RIDGE } else { 0.0 });
             }
             y.push(0.0);
         }
@@ -889,6 +986,10 @@ pub fn fit_closure(
         }
     };
     let tb: f64 = cb.iter().sum();
+    let rows = |runs: &[RunData]| runs.iter().map(|r| 4 * r.blocks()).sum::<usize>().max(1) as f64;
+    let (nf, nc) = (rows(fit), rows(check));
+    let fit_total = fa.iter().sum::<f64>() + 2.0 * p as f64;
+    let check_total: f64 = ca.iter().sum();
     Fitted {
         closure: c,
         label: c.label(),
@@ -896,11 +997,17 @@ pub fn fit_closure(
         fit_explained: share(fb, fa, 2.0 * p as f64),
         check_explained: share(cb, ca, 0.0),
         weights: p,
-        check_left: (ca.iter().sum::<f64>())
-            / check.iter().map(|r| 4 * r.blocks()).sum::<usize>().max(1) as f64,
-        fit_left: (fa.iter().sum::<f64>() + 2.0 * p as f64)
-            / fit.iter().map(|r| 4 * r.blocks()).sum::<usize>().max(1) as f64,
+        // The residuals' response to each basis function was fitted to
+        // the nominal residuals, which the term must cancel.
+        w: w.iter().map(|v| -v).collect(),
+        check_left: check_total / nc,
+        fit_left: fit_total / nf,
+        left: (fit_total + check_total) / (nf + nc),
         per_residual: std::array::from_fn(|i| if tb > 0.0 { (cb[i] - ca[i]) / tb } else { 0.0 }),
+        fit_per_residual: {
+            let t: f64 = fb.iter().sum();
+            std::array::from_fn(|i| if t > 0.0 { (fb[i] - fa[i]) / t } else { 0.0 })
+        },
     }
 }
 

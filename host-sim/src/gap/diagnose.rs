@@ -8,7 +8,8 @@
 
 use std::time::Instant;
 
-use super::candidates::{params_map, CandidateFit, Fitter, PairFit};
+use super::candidates::{params_map, CandidateFit, Fitter, LearnedStarts, PairFit};
+use super::closures::{Dependence, Site};
 use super::diagnosis::{Combined, Details, Diagnosis, Second, Verdict};
 use super::grey_box;
 use super::isolate::{self, Isolation};
@@ -21,7 +22,7 @@ use super::reasons;
 use super::replay::Replay;
 use super::run::Run;
 use super::stats::BANDS_HZ;
-use crate::model::effects::{EffectKind, Effects};
+use crate::model::effects::{EffectKind, Effects, SCREW_FORCES_N};
 use crate::model::plant::Plant;
 
 /// Options of a diagnosis.
@@ -120,14 +121,21 @@ fn conclude(
             n.pooled,
             iso,
             partial.map(|i| &ranked[i].candidate),
-            &ranked[0].candidate,
+            ranked.first().map(|c| &c.candidate),
         ),
         Some(i) => {
             let chosen = &ranked[i];
             c.fit = Shrink::new(n.fit, chosen.candidate.fit_after);
             c.check = Shrink::new(n.check, chosen.candidate.check_after);
             c.effects = chosen.effects;
-            let runner_up = ranked.iter().find(|x| x.kind != chosen.kind);
+            let runner_up = ranked
+                .iter()
+                .filter(|x| x.kind != chosen.kind)
+                .max_by(|a, b| {
+                    a.candidate
+                        .check_shrink
+                        .total_cmp(&b.candidate.check_shrink)
+                });
             let mut r = reasons::located(iso);
             r.push_str(&reasons::explained(
                 &chosen.candidate,
@@ -170,6 +178,29 @@ fn conclude(
     c
 }
 
+/// The learned general families' starting points from the closures of
+/// their equations: the coupling's deflection at the screw map's knots
+/// (the closure's odd tents over the same forces, each weight the
+/// deflection at its knot), as increments in units of 10 um; the servo map
+/// as the servo closure fitted it (the same features).
+fn learned_starts(iso: &Isolation) -> LearnedStarts {
+    let screw = iso
+        .weights(Site::CouplingIn, Dependence::Force)
+        .filter(|w| w.len() == SCREW_FORCES_N.len())
+        .map(|w| {
+            let mut prev = 0.0;
+            w[1..]
+                .iter()
+                .map(|d| {
+                    let step = (d - prev).max(0.0);
+                    prev = prev.max(*d);
+                    step / 1e-5
+                })
+                .collect()
+        });
+    LearnedStarts { screw }
+}
+
 /// Diagnose: fit runs, check runs, the nominal plant.
 pub fn diagnose(
     fit: Vec<Run>,
@@ -182,10 +213,21 @@ pub fn diagnose(
     let all: Vec<&Run> = fit.iter().chain(check.iter()).collect();
     let where_ = where_list(&all, &n.replays);
     let channels = channel_reports(&all, &n.replays);
+    // Where first: which equation the runs violate and on what.
+    let iso = isolate::isolate(&fit, &check, base);
+    // The models worth fitting: the effects the isolation points at (none
+    // where the runs agree with the nominal model within the noise).
+    let kinds = if n.pooled < policy::NONE_GAP {
+        Vec::new()
+    } else {
+        iso.to_fit()
+    };
     // Starting points where the gap is a narrow valley (see [`prefit`]).
     let mut seeds = Effects::NONE;
-    if let Some(x) = prefit::motor_limit(&fit, base) {
-        seeds.set(EffectKind::MotorLimit, Some(&x));
+    if kinds.contains(&EffectKind::MotorLimit) {
+        if let Some(x) = prefit::motor_limit(&fit, base) {
+            seeds.set(EffectKind::MotorLimit, Some(&x));
+        }
     }
     let fitter = Fitter {
         fit: &fit,
@@ -195,19 +237,19 @@ pub fn diagnose(
         seeds,
         dt_s: opts.dt_s,
         max_evals: opts.max_evals,
+        learned: learned_starts(&iso),
     };
-    // Where first: which equation the runs violate and on what.
-    let iso = isolate::isolate(&fit, &check, base);
-    // Candidates: every effect, fitted on the fit runs, evaluated on the check runs.
-    let progress = Progress::candidates(opts.progress, EffectKind::ALL.len());
+    // Candidates: those effects, fitted on the fit runs, evaluated on the
+    // check runs.
+    let progress = Progress::candidates(opts.progress, kinds.len());
     let explains =
         |fit_after: f64, check_after: f64| policy::explains(n.fit, n.check, fit_after, check_after);
-    let mut ranked = fitter.rank(n.fit, n.check, &explains, &progress);
+    let mut ranked = fitter.rank(&kinds, n.fit, n.check, &explains, &progress);
     progress.finish();
     // The effects a verdict may name: those the closures comparable to the
-    // best name, none where a closure outside the catalogue is among them;
+    // best name, none where the best lies outside the catalogue;
     // `parameters` only where its re-estimate on the check runs agrees.
-    let outside = iso.outside_comparable();
+    let outside = iso.outside_best();
     let params_agree = !outside
         && iso.allows(EffectKind::Parameters)
         && ranked
@@ -223,6 +265,7 @@ pub fn diagnose(
                     )
                     && grey_box::agrees(
                         p.candidate.parameters.as_deref().unwrap_or_default(),
+                        p.candidate.check_after,
                         &check,
                         base,
                         opts.dt_s,
@@ -231,7 +274,10 @@ pub fn diagnose(
     let allowed =
         |k: EffectKind| !outside && iso.allows(k) && (k != EffectKind::Parameters || params_agree);
     // A second effect where the best single one leaves a gap beyond the noise.
-    let pair = if policy::wants_pair(n.pooled, &ranked[0], opts.second_effect) {
+    let pair = if ranked
+        .first()
+        .is_some_and(|b| policy::wants_pair(n.pooled, b, opts.second_effect))
+    {
         fitter.best_pair(&ranked)
     } else {
         None

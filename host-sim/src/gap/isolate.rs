@@ -4,9 +4,9 @@
 //! The structural residuals ([`super::equations`]) say which equations are
 //! out of balance; the closures ([`super::closures`]), each a form-free term
 //! added to one equation, say which single equation's correction explains
-//! them and over which of its variables. The best closure is judged on the
-//! held-out check runs where they show the violation, else on the fit runs
-//! with a penalty for its number of weights. Closures that leave about as
+//! them and over which of its variables. Closures are judged on what they
+//! leave of the fit runs' excess (with a penalty for their number of
+//! weights) and of the held-out check runs' together. Closures that leave about as
 //! much ([`comparable`]) cannot be told apart by the residuals: the verdict
 //! is then decided between the effects they name by the replayed models
 //! ([`super::policy`]), and only between those.
@@ -14,7 +14,9 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::closures::{fit_closure, library, residual_excess, Closure, Fitted, Knots, RunData};
+use super::closures::{
+    fit_closure, library, residual_excess, Closure, Dependence, Fitted, Knots, RunData, Site,
+};
 use super::equations::Residual;
 use super::run::Run;
 use crate::model::effects::EffectKind;
@@ -40,16 +42,19 @@ pub struct ResidualExcess {
 /// scatter 1.7 times as widely as the noise alone makes them).
 pub const VIOLATED: f64 = 2.0;
 
-/// Total check-run excess (summed over the residuals) from which the
-/// closures are judged on the check runs: below it the check runs do not
-/// show the violation, and the fit runs judge (penalised).
-pub const CHECK_SHOWS: f64 = 2.0;
-
 /// A closure leaves about as much as the best when it leaves at most this
 /// much more excess per block (in units of the noise's power)...
 pub const COMPARABLE_ABS: f64 = 0.5;
 /// ... or at most this share more than the best leaves.
 pub const COMPARABLE_REL: f64 = 0.25;
+/// A closure of the best's own equation keeps its name in play when it
+/// leaves at most this many times what the best leaves (plus
+/// [`COMPARABLE_ABS`]): within one equation the dependences nest (the
+/// pressure-history closure holds the static pressure closure, the coupling
+/// loop holds the plain relative displacement), so the richer one wins by
+/// its extra freedom as well as by being right, and the replayed models
+/// decide between them.
+pub const SAME_EQUATION_FACTOR: f64 = 1.5;
 
 /// Whether a closure that leaves `left` is comparable to the best, which
 /// leaves `best`.
@@ -62,8 +67,6 @@ pub fn comparable(left: f64, best: f64) -> bool {
 pub struct Isolation {
     /// Each residual's excess on the fit and check runs.
     pub residuals: Vec<ResidualExcess>,
-    /// `check` or `fit`: the runs the closures were judged on.
-    pub judged_on: String,
     /// Every closure tried, best first.
     pub closures: Vec<Fitted>,
     /// The violated equation: where the best closure adds its term.
@@ -73,10 +76,11 @@ pub struct Isolation {
     /// The identifier the table of docs/gap.md gives the two
     /// (`unexplained` outside the catalogue).
     pub names: String,
-    /// The identifiers of the closures that explain about as much as the
-    /// best ([`comparable`]), the best's first; `unexplained` for a closure
-    /// outside the catalogue.
-    pub comparable: Vec<String>,
+    /// The identifiers a verdict may name ([`Isolation::allows`]): those of
+    /// the closures comparable to the best ([`comparable`]) and of the
+    /// best's own equation ([`Isolation::same_equation`]), the best's first;
+    /// `unexplained` for a closure outside the catalogue.
+    pub may_name: Vec<String>,
 }
 
 impl Isolation {
@@ -93,26 +97,65 @@ impl Isolation {
             .filter(move |c| best.is_some_and(|b| comparable(self.left(c), b)))
     }
 
-    /// What a closure leaves on the runs it is judged on.
+    /// What a closure leaves of the runs' excess, per block ([`Fitted::left`]).
     pub fn left(&self, c: &Fitted) -> f64 {
-        if self.judged_on == "check" {
-            c.check_left
-        } else {
-            c.fit_left
-        }
+        c.left
     }
 
-    /// Whether the effect `k` is among those the comparable closures name.
+    /// The closures of the best's own equation (the same dominant residual)
+    /// that leave at most [`SAME_EQUATION_FACTOR`] times what the best
+    /// leaves: other dependences of the same equation's violation, told
+    /// apart less surely than equations are.
+    pub fn same_equation(&self) -> impl Iterator<Item = &Fitted> {
+        let best = self.best().map(|b| (b.dominant(), b.left));
+        self.closures.iter().filter(move |c| {
+            best.is_some_and(|(d, l)| {
+                c.dominant() == d && c.left <= SAME_EQUATION_FACTOR * l.max(0.0) + COMPARABLE_ABS
+            })
+        })
+    }
+
+    /// Whether the effect `k` is among those the comparable closures, or
+    /// the closures of the same equation, name.
     pub fn allows(&self, k: EffectKind) -> bool {
         self.comparable_closures()
+            .chain(self.same_equation())
             .any(|c| c.closure.names() == Some(k))
     }
 
-    /// Whether a closure outside the catalogue explains about as much as
-    /// the best.
-    pub fn outside_comparable(&self) -> bool {
-        self.comparable_closures()
-            .any(|c| c.closure.names().is_none())
+    /// Whether the best closure lies outside the catalogue (a force over
+    /// the load's position, a drift): no effect of the catalogue is then
+    /// named, whatever the others explain.
+    pub fn outside_best(&self) -> bool {
+        self.best().is_some_and(|c| c.closure.names().is_none())
+    }
+
+    /// The effects worth fitting as models: those the comparable closures
+    /// name, and the first three effects the best closures name (the
+    /// best partial candidates of an `unexplained`), in
+    /// [`EffectKind::ALL`] order.
+    pub fn to_fit(&self) -> Vec<EffectKind> {
+        let mut best3: Vec<EffectKind> = Vec::new();
+        for k in self.closures.iter().filter_map(|c| c.closure.names()) {
+            if best3.len() == 3 {
+                break;
+            }
+            if !best3.contains(&k) {
+                best3.push(k);
+            }
+        }
+        EffectKind::ALL
+            .into_iter()
+            .filter(|k| best3.contains(k) || self.allows(*k))
+            .collect()
+    }
+
+    /// The fitted weights of the closure at `site` depending on `dep`.
+    pub fn weights(&self, site: Site, dep: Dependence) -> Option<&[f64]> {
+        self.closures
+            .iter()
+            .find(|c| c.closure.site == site && c.closure.dep == dep)
+            .map(|c| c.w.as_slice())
     }
 
     /// The best closure's closure, if any.
@@ -143,20 +186,17 @@ pub fn isolate(fit: &[Run], check: &[Run], plant: &Plant) -> Isolation {
             violated: ef[r.index()].max(ec[r.index()]) > VIOLATED,
         })
         .collect();
-    let on_check = ec.iter().sum::<f64>() >= CHECK_SHOWS;
     let mut closures: Vec<Fitted> = library()
         .par_iter()
         .map(|c| fit_closure(*c, &fit_d, &check_d, plant, &knots))
         .collect();
-    let left = |c: &Fitted| if on_check { c.check_left } else { c.fit_left };
-    closures.sort_by(|a, b| left(a).total_cmp(&left(b)));
+    closures.sort_by(|a, b| a.left.total_cmp(&b.left));
     let mut iso = Isolation {
         residuals,
-        judged_on: if on_check { "check" } else { "fit" }.into(),
         equation: String::new(),
         dependence: String::new(),
         names: String::new(),
-        comparable: Vec::new(),
+        may_name: Vec::new(),
         closures,
     };
     if let Some(b) = iso.best().map(|b| b.closure) {
@@ -165,13 +205,13 @@ pub fn isolate(fit: &[Run], check: &[Run], plant: &Plant) -> Isolation {
         iso.names = name_of(b).to_string();
     }
     let mut names: Vec<String> = Vec::new();
-    for c in iso.comparable_closures() {
+    for c in iso.comparable_closures().chain(iso.same_equation()) {
         let n = name_of(c.closure).to_string();
         if !names.contains(&n) {
             names.push(n);
         }
     }
-    iso.comparable = names;
+    iso.may_name = names;
     iso
 }
 
@@ -183,7 +223,6 @@ fn name_of(c: Closure) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::closures::{Dependence, Site};
     use crate::gap::validation::{cases, suite_logs};
 
     /// The own suite's case named `name`, isolated.

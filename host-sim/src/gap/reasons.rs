@@ -1,11 +1,9 @@
 //! The diagnosis's reasons in English: one sentence (and its additions) per
 //! outcome of the policy ([`super::policy`]).
 
-use super::candidates::PairFit;
 use super::diagnosis::Candidate;
 use super::isolate::Isolation;
-use super::measure::Shrink;
-use super::policy::{MIN_SHRINK, MOST, NONE_GAP, PARAMS_MARGIN};
+use super::policy::{MOST, NONE_GAP, PARAMS_MARGIN};
 use crate::model::effects::EffectKind;
 
 /// The verdict `none`.
@@ -15,38 +13,9 @@ pub fn within_noise(pooled: f64) -> String {
     )
 }
 
-/// The verdict `unexplained`: what the best candidate (and the best pair, if
-/// one was fitted) achieved against what was needed. `before_*` are the
-/// nominal model's gaps of the fit and check runs.
-pub fn unexplained(
-    pooled: f64,
-    best: &Candidate,
-    pair: Option<&PairFit>,
-    before_fit: f64,
-    before_check: f64,
-) -> String {
-    format!(
-        "gap {pooled:.2} beyond the noise; the best candidate ({}) shrinks it by {:.0} % on the fit runs and {:.0} % on the check runs (needed: {:.0} % on both, or the check runs brought or kept within the noise){}",
-        best.effect,
-        best.fit_shrink * 100.0,
-        best.check_shrink * 100.0,
-        MIN_SHRINK * 100.0,
-        match pair {
-            Some(p) => format!(
-                ", and the best pair ({} + {}) by {:.0} % / {:.0} %",
-                p.first.name(),
-                p.second.name(),
-                Shrink::new(before_fit, p.fit_after).shrink * 100.0,
-                Shrink::new(before_check, p.check_after).shrink * 100.0
-            ),
-            None => String::new(),
-        }
-    )
-}
-
-/// An effect as the verdict, against the next candidate; with
-/// `check_within_noise`, why the check runs cannot confirm it (they stay at
-/// the nominal gap `before_check`).
+/// An effect as the verdict, against the best other candidate on the check
+/// runs; with `check_within_noise`, why the check runs cannot confirm it
+/// (they stay at the nominal gap `before_check`).
 pub fn explained(
     chosen: &Candidate,
     runner_up: Option<&Candidate>,
@@ -54,14 +23,19 @@ pub fn explained(
     before_check: f64,
 ) -> String {
     let mut reason = format!(
-        "{} shrinks the gap by {:.0} % on the fit runs and {:.0} % on the held-out check runs; the next candidate ({}) by {:.0} % / {:.0} %",
+        "{} shrinks the gap by {:.0} % on the fit runs and {:.0} % on the held-out check runs",
         chosen.effect,
         chosen.fit_shrink * 100.0,
         chosen.check_shrink * 100.0,
-        runner_up.map(|x| x.effect.as_str()).unwrap_or("-"),
-        runner_up.map(|x| x.fit_shrink * 100.0).unwrap_or(0.0),
-        runner_up.map(|x| x.check_shrink * 100.0).unwrap_or(0.0)
     );
+    if let Some(x) = runner_up {
+        reason.push_str(&format!(
+            "; of the other candidates, {} does best on the check runs ({:.0} % / {:.0} %)",
+            x.effect,
+            x.fit_shrink * 100.0,
+            x.check_shrink * 100.0
+        ));
+    }
     if check_within_noise {
         reason.push_str(&format!(
             "; the check runs agree with the nominal model within the noise (gap {before_check:.2}) and stay so with the effect ({:.2}): they do not excite it, so they cannot confirm it, only not refute it",
@@ -129,12 +103,11 @@ pub fn located(iso: &Isolation) -> String {
         })
         .unwrap_or_default();
     format!(
-        "residuals beyond the noise (fit / check runs, noise units per block): {}; violated: {}, depending on {} (a closure of it leaves {:.2} per block on the {} runs{other}); the table of docs/gap.md names this {}. ",
+        "residuals beyond the noise (fit / check runs, noise units per block): {}; violated: {}, depending on {} (a closure of it leaves {:.2} per block of the fit and check runs{other}); the table of docs/gap.md names this {}. ",
         if violated.is_empty() { "none".to_string() } else { violated.join(", ") },
         iso.equation,
         iso.dependence,
         iso.left(best),
-        iso.judged_on,
         iso.names,
     )
 }
@@ -146,12 +119,14 @@ pub fn unexplained_located(
     pooled: f64,
     iso: &Isolation,
     partial: Option<&Candidate>,
-    best: &Candidate,
+    best: Option<&Candidate>,
 ) -> String {
     let mut r = format!("gap {pooled:.2} beyond the noise; ");
     r.push_str(&located(iso));
-    if iso.outside_comparable() {
-        r.push_str("A closure outside the catalogue explains about as much as the best, so no effect of the catalogue is named. ");
+    if iso.outside_best() {
+        r.push_str(
+            "The best closure lies outside the catalogue, so no effect of the catalogue is named. ",
+        );
     }
     match partial {
         Some(c) => r.push_str(&format!(
@@ -161,12 +136,15 @@ pub fn unexplained_located(
             c.check_shrink * 100.0,
             MOST * 100.0
         )),
-        None => r.push_str(&format!(
-            "no effect of the catalogue matches; the best candidate overall ({}) shrinks the gap by {:.0} % / {:.0} %",
-            best.effect,
-            best.fit_shrink * 100.0,
-            best.check_shrink * 100.0
-        )),
+        None => r.push_str(&match best {
+            Some(b) => format!(
+                "no effect of the catalogue matches; the best candidate fitted ({}) shrinks the gap by {:.0} % / {:.0} %",
+                b.effect,
+                b.fit_shrink * 100.0,
+                b.check_shrink * 100.0
+            ),
+            None => "no effect of the catalogue matches".to_string(),
+        }),
     }
     r
 }

@@ -4,9 +4,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::diagnosis::{Candidate, Details, Diagnosis};
+use super::isolate::{Isolation, SAME_EQUATION_FACTOR, VIOLATED};
 use super::measure::BLOCK;
 use super::replay::{measured, Replay, CHANNELS};
 use super::run::Run;
+use crate::io::bars::{save_bars, Bars};
 use crate::io::files::{self, PathError};
 use crate::io::plot::{self, Panel, PlotError, Series};
 use crate::model::effects::{
@@ -70,23 +72,24 @@ fn residual_figure(
 }
 
 fn candidates_figure(path: &Path, d: &Diagnosis) -> Result<(), PlotError> {
-    let shrinks = |pick: fn(&Candidate) -> f64| -> Vec<(f64, f64)> {
+    // Shrinks below -100 % (a model far worse than the nominal one) are
+    // drawn at -100 %; the table gives the values.
+    let shrinks = |pick: fn(&Candidate) -> f64| -> Vec<f64> {
         d.candidates
             .iter()
-            .enumerate()
-            .map(|(i, c)| ((i + 1) as f64, pick(c).max(-1.0) * 100.0))
+            .map(|c| pick(c).max(-1.0) * 100.0)
             .collect()
     };
-    let fit = shrinks(|c| c.fit_shrink);
-    let check = shrinks(|c| c.check_shrink);
-    let panel = Panel::new(
-        "candidate effects, ranked (x = rank in the table)",
-        "rank",
-        "gap shrink [%]",
-    )
-    .with(Series::line("fit runs", fit))
-    .with(Series::line("check runs (held out)", check));
-    plot::save(path, &[panel], 900, 360)
+    let bars = Bars {
+        title: "candidate effects: gap shrink (fitted on the fit runs)".into(),
+        y_label: "gap shrink [%]".into(),
+        categories: d.candidates.iter().map(|c| c.effect.clone()).collect(),
+        series: vec![
+            ("fit runs".into(), shrinks(|c| c.fit_shrink)),
+            ("check runs (held out)".into(), shrinks(|c| c.check_shrink)),
+        ],
+    };
+    save_bars(path, &bars, 900, 380)
 }
 
 /// The learned servo envelope against speed, with the drive force the fit
@@ -338,6 +341,14 @@ fn screw_figure(path: &Path, m: &ScrewMap) -> Result<(), PlotError> {
     plot::save(path, &[panel], 900, 420)
 }
 
+/// `s` with its first letter in upper case (a sentence's start).
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next()
+        .map(|f| f.to_uppercase().chain(c).collect())
+        .unwrap_or_default()
+}
+
 /// Write `report.md` and its figures into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportError> {
     files::create_dir_all(dir)?;
@@ -351,8 +362,26 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
     )?;
     candidates_figure(&dir.join("candidates.png"), d)?;
     let mut md = String::new();
+    header(&mut md, d, details);
+    isolation_section(&mut md, &d.isolation);
+    effect_sections(dir, &mut md, details)?;
+    parameters_section(&mut md, d);
+    candidates_section(&mut md, d);
+    where_section(&mut md, d);
+    let _ = writeln!(md, "Diagnosis took {:.1} s.", d.elapsed_s);
+    let path = dir.join("report.md");
+    Ok(files::write(&path, md)?)
+}
+
+/// The verdict, its gaps and the form that held.
+fn header(md: &mut String, d: &Diagnosis, details: &Details) {
     let _ = writeln!(md, "# Sim-to-real gap diagnosis\n");
-    let _ = writeln!(md, "**Verdict: `{}`**. {}\n", d.verdict, d.reason);
+    let _ = writeln!(
+        md,
+        "**Verdict: `{}`**. {}\n",
+        d.verdict,
+        capitalised(&d.reason)
+    );
     let _ = writeln!(md, "Gap: {}.\n", d.gap_metric);
     let _ = writeln!(md, "| runs | before | after | shrink |\n|---|---|---|---|");
     let _ = writeln!(
@@ -404,6 +433,69 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
             100.0 * n.check_shrink
         );
     }
+}
+
+/// Where first: the residuals of the model's equations, the closures that
+/// explain them, and the equation the verdict stands on.
+fn isolation_section(md: &mut String, iso: &Isolation) {
+    let _ = writeln!(
+        md,
+        "## Where first: which equation the runs violate\n\n\
+         Each residual checks some of the model's equations on the measurements alone; its \
+         excess is the mean over 10 ms blocks of the squared block mean in units of its noise, \
+         less one (0 within the noise; beyond {VIOLATED} it is violated).\n\n\
+         | residual | checks | fit runs | check runs | violated |\n|---|---|---|---|---|"
+    );
+    for r in &iso.residuals {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.1} | {:.1} | {} |",
+            r.residual,
+            r.checks,
+            r.fit,
+            r.check,
+            if r.violated { "**yes**" } else { "no" }
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nA closure adds a term of any shape over one equation's own variables to that \
+         equation alone, fitted on the fit runs; it is judged by what it leaves of the \
+         residuals' excess (per block, fit runs penalised by twice its weights, check runs as \
+         they are). The best closures:\n\n\
+         | equation | depends on | names | leaves (fit) | leaves (check) | leaves (all) | explains of the check runs |\n|---|---|---|---|---|---|---|"
+    );
+    for c in iso.closures.iter().take(8) {
+        let _ = writeln!(
+            md,
+            "| {} | {} | `{}` | {:.2} | {:.2} | {:.2} | {:.0} % |",
+            c.closure.site.name(),
+            c.closure.dep.name(),
+            c.names,
+            c.fit_left,
+            c.check_left,
+            c.left,
+            100.0 * c.check_explained
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n**Violated: {}, depending on {}** (the table of docs/gap.md names this `{}`). \
+         Effects the verdict may name (closures that leave about as much as the best, or \
+         of the same equation within {SAME_EQUATION_FACTOR} times what it leaves): {}.\n",
+        iso.equation,
+        iso.dependence,
+        iso.names,
+        iso.may_name
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+}
+
+/// Each learned general family of the verdict's effects: its table and figure.
+fn effect_sections(dir: &Path, md: &mut String, details: &Details) -> Result<(), ReportError> {
     if let Some(h) = &details.effects.hose_spectrum {
         spectrum_figure(&dir.join("hose_spectrum.png"), h)?;
         let _ = writeln!(
@@ -539,6 +631,11 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
                 .join(" | "),
         );
     }
+    Ok(())
+}
+
+/// The grey-box re-estimate of the nominal parameters.
+fn parameters_section(md: &mut String, d: &Diagnosis) {
     if !d.parameters.is_empty() {
         let _ = writeln!(
             md,
@@ -563,6 +660,10 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
         }
         let _ = writeln!(md);
     }
+}
+
+/// The candidates fitted on the fit runs.
+fn candidates_section(md: &mut String, d: &Diagnosis) {
     let _ = writeln!(md, "## Candidates (fitted on the fit runs only)\n");
     let _ = writeln!(
         md,
@@ -586,6 +687,10 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
         );
     }
     let _ = writeln!(md, "\n![ranking](candidates.png)\n");
+}
+
+/// Where the gap lies and the residual tests, per run and channel.
+fn where_section(md: &mut String, d: &Diagnosis) {
     let _ = writeln!(md, "## Where the gap lies (nominal model)\n");
     let _ = writeln!(md, "| run | channel | from [s] | to [s] | segment | share of the run's gap |\n|---|---|---|---|---|---|");
     for w in &d.where_ {
@@ -628,9 +733,6 @@ pub fn write(dir: &Path, d: &Diagnosis, details: &Details) -> Result<(), ReportE
         md,
         "\n## Residuals before and after\n\n![residuals](residuals.png)\n"
     );
-    let _ = writeln!(md, "Diagnosis took {:.1} s.", d.elapsed_s);
-    let path = dir.join("report.md");
-    Ok(files::write(&path, md)?)
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use plotters::style::{register_font, FontStyle};
 static FONT: Once = Once::new();
 const FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
-fn ensure_font() {
+pub(crate) fn ensure_font() {
     FONT.call_once(|| {
         // The embedded font is a valid TTF; a failure would only lose text.
         let _ = register_font("sans-serif", FontStyle::Normal, FONT_BYTES);
