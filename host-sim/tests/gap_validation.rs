@@ -8,12 +8,16 @@
 //! out `air`, and where the rig's parameters are off the re-estimate finds
 //! the parameter that is off. The table is written to
 //! target/gap-validation.md.
+//!
+//! The suite takes minutes, so `cargo test` skips it (`#[ignore]`); CI runs
+//! it as its own stage, `.ci/validation.sh`.
 
 use host_sim::gap::diagnose::Options;
 use host_sim::gap::validation::{cases, publish, run_suite, score, suite_logs};
 use host_sim::model::effects::{EffectKind, RATIO_KEYS};
 
 #[test]
+#[ignore = "validation suite, minutes: CI's validation stage runs it (bash .ci/validation.sh)"]
 fn gap_validation_suite() {
     let out = run_suite(&cases(), &Options::default(), false);
     let s = publish(&out, "gap-validation.md");
