@@ -4,8 +4,9 @@
 # QEMU is installed) the emulated build on netduinoplus2 with its USARTs on
 # pseudo-terminals (ttys, as a USB-serial board appears): a scripted console session
 # with bursts, fault injection over the HIL link, `host-sim hil --port --console`,
-# `host-sim console --script --capture` read by `host-sim gap`, and the paper's four
-# closed-loop scenarios through the emulated firmware, bit-identical to the software loop.
+# `host-sim console --script --capture` read by `host-sim gap`, the paper's four
+# closed-loop scenarios through the emulated firmware, bit-identical to the software loop,
+# and the manuals' commands for a board or QEMU, run against the emulated board.
 #
 # Assumes `rustup target add thumbv7em-none-eabihf` and python3 with pip (the count
 # installs `unicorn pyelftools` if they are missing). Uses the cargo aliases of
@@ -86,3 +87,8 @@ timeout 300 python3 firmware/qemu/console_check.py "$QEMU_ELF"
 step "processor in the loop over ttys: faults zero the drive; hil --port/--console; console capture -> gap; the paper's four scenarios bit-identical to software"
 DCA_QEMU_ELF="$PWD/$QEMU_ELF" timeout 900 \
     cargo test -p host-sim --test hil_pil -- --ignored --nocapture --test-threads 1
+
+step "the documented commands for a board (against the emulated one: --qemu for --port) and for QEMU"
+# host-sim/src/cli/doc_commands.rs; the others ran in .ci/run's documented-commands step.
+DCA_DOCS_RUN=qemu timeout 1800 \
+    cargo test --bin host-sim documented_commands_run -- --ignored --nocapture

@@ -8,6 +8,8 @@ use clap::{Parser, Subcommand};
 mod args;
 mod bench;
 mod console;
+#[cfg(test)]
+mod doc_commands;
 mod gains;
 mod gap;
 mod gap_suite;
@@ -80,61 +82,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The host-sim commands of a Markdown section's `sh` blocks (lines
-    /// joined at a trailing backslash), as arguments after
-    /// `cargo run --release -p host-sim --`.
-    fn commands_in(markdown: &str, section: &str) -> Vec<Vec<String>> {
-        let body = markdown
-            .split("\n## ")
-            .find(|s| s.starts_with(section))
-            .unwrap_or_else(|| panic!("no section {section}"));
-        let mut out = Vec::new();
-        let mut in_sh = false;
-        let mut line = String::new();
-        for l in body.lines() {
-            match l.trim() {
-                "```sh" => in_sh = true,
-                "```" => in_sh = false,
-                l if in_sh && !l.starts_with('#') => {
-                    line += l.trim_end_matches('\\');
-                    line.push(' ');
-                    if !l.ends_with('\\') {
-                        if let Some(args) = line.split("-p host-sim --").nth(1) {
-                            out.push(args.split_whitespace().map(str::to_string).collect());
-                        }
-                        line.clear();
-                    }
-                }
-                _ => {}
-            }
-        }
-        out
-    }
-
-    /// Every command of README.md's "A first session" parses as written
-    /// (running them needs a board, QEMU or recorded runs).
-    #[test]
-    fn the_readme_first_session_parses() {
-        let readme = include_str!("../../../README.md");
-        let commands = commands_in(readme, "A first session");
-        assert!(commands.len() >= 5, "{commands:?}");
-        for c in &commands {
-            let argv = std::iter::once("host-sim".to_string()).chain(c.iter().cloned());
-            if let Err(e) = Cli::try_parse_from(argv) {
-                panic!("{}: {e}", c.join(" "));
-            }
-        }
-        // Among them, the two that once needed --log and --json.
-        for want in [["hil", "--compare"], ["gap", "--report"]] {
-            assert!(
-                commands
-                    .iter()
-                    .any(|c| c[0] == want[0] && c.iter().any(|a| a == want[1])),
-                "{want:?}"
-            );
-        }
-    }
 
     /// `gap` takes --json and --report, either, both or neither.
     #[test]
