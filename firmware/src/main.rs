@@ -318,8 +318,8 @@ mod app {
     /// Per tick: the calibrated sample (or the frame's), dca-core's
     /// `ControlLoop::tick` (checks, reference, controller step, gating), the
     /// drive output (disabled unless armed or running with the local source),
-    /// the HIL reply frame (written here, blocking: at most 20 bytes, about
-    /// 0.22 ms at 921600 baud on the board, within the deadline; a separate
+    /// the HIL reply frame (written here, blocking: at most 18 bytes, about
+    /// 0.20 ms at 921600 baud on the board, within the deadline; a separate
     /// sender task could still be finishing the previous frame when the host's
     /// next one arrives), a telemetry row every `decimation` ticks.
     #[task(binds = EXTI0, priority = 4, shared = [ctl, clock, sensors], local = [drive, rows_in, control_bell, hil_tx])]

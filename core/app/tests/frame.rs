@@ -58,6 +58,32 @@ fn frames_round_trip_bit_for_bit() {
     assert_eq!(back, c);
 }
 
+/// The firmware writes the reply frame inside the control tick's deadline
+/// (firmware/src/main.rs, docs/firmware.md): 18 bytes at the most. postcard
+/// writes `seq` (u32) in at most 5 bytes and `faults` (u16) in at most 3,
+/// the command in 4, state and flags in 1 each; the CRC adds 2, COBS 1 and
+/// the delimiter 1.
+#[test]
+fn a_command_frame_is_at_most_18_bytes() {
+    let mut longest = 0;
+    for seq in [0, 127, 128, 1 << 21, u32::MAX] {
+        for faults in [0, 0x7f, 0x80, 1 << 14, u16::MAX] {
+            for v_cmd_mps in [0.0, -0.1, f32::MAX, f32::NAN] {
+                let c = CommandFrame {
+                    seq,
+                    v_cmd_mps,
+                    state: u8::MAX,
+                    faults,
+                    flags: u8::MAX,
+                };
+                let mut out = [0u8; MAX_FRAME_LEN];
+                longest = longest.max(encode(&c, &mut out).unwrap());
+            }
+        }
+    }
+    assert_eq!(longest, 18);
+}
+
 #[test]
 fn every_single_bit_flip_is_detected() {
     let good = wire(&sample(3));
