@@ -571,6 +571,27 @@ impl Controller {
             self.bumpless_start(y, xi);
             self.started = true;
         }
+        self.law_tick(sample, lim, y, r, (eso_tick, ctl_tick));
+        if self.saturated {
+            flags |= Flags::SATURATED;
+        }
+        if !self.v_cmd_mps.is_finite() {
+            self.v_cmd_mps = 0.0;
+            flags |= Flags::NON_FINITE_OUTPUT;
+        }
+        let v = clamp(self.v_cmd_mps, -lim.v_max_mps, lim.v_max_mps);
+        Output {
+            v_cmd_mps: v,
+            flags: Flags(flags),
+        }
+    }
+
+    /// The selected law's part of [`Self::step`] at the checked measurement
+    /// `y` and reference `r`: sets `v_cmd_mps` and `saturated`. Always
+    /// inlined: the board's tick stays one function.
+    #[inline(always)]
+    fn law_tick(&mut self, sample: &Sample, lim: Limits, y: f32, r: f32, ticks: (bool, bool)) {
+        let (eso_tick, ctl_tick) = ticks;
         match &mut self.law {
             Law::MpcEso {
                 gains,
@@ -656,18 +677,6 @@ impl Controller {
                     eso.update(eso_gains, y, u);
                 }
             }
-        }
-        if self.saturated {
-            flags |= Flags::SATURATED;
-        }
-        if !self.v_cmd_mps.is_finite() {
-            self.v_cmd_mps = 0.0;
-            flags |= Flags::NON_FINITE_OUTPUT;
-        }
-        let v = clamp(self.v_cmd_mps, -lim.v_max_mps, lim.v_max_mps);
-        Output {
-            v_cmd_mps: v,
-            flags: Flags(flags),
         }
     }
 }

@@ -482,12 +482,24 @@ fn tables(
     truths: &[Truth],
     res: &[Result<Outcome, String>],
 ) -> String {
+    let verdicts: Vec<String> = res
+        .iter()
+        .map(|r| match r {
+            Ok(o) => o.verdict.clone(),
+            Err(_) => "error".to_string(),
+        })
+        .collect();
     let mut s = format!("## {title}\n\n");
-    let verdict_of = |i: usize| match &res[i] {
-        Ok(o) => o.verdict.clone(),
-        Err(_) => "error".to_string(),
-    };
-    // Confusion table.
+    s.push_str(&confusion(cases, truths, &verdicts));
+    s.push_str(&counts(cases, truths, &verdicts, res));
+    s.push_str(&per_case(cases, truths, res));
+    s.push('\n');
+    s
+}
+
+/// The confusion table: rows the truths, columns the verdicts.
+fn confusion(cases: &[Case], truths: &[Truth], verdicts: &[String]) -> String {
+    let mut s = String::new();
     let mut rows: Vec<String> = Vec::new();
     for t in truths {
         if !rows.contains(&t.label) {
@@ -495,10 +507,9 @@ fn tables(
         }
     }
     let mut cols: Vec<String> = VOCABULARY.iter().map(|v| v.to_string()).collect();
-    for i in 0..cases.len() {
-        let v = verdict_of(i);
-        if !cols.contains(&v) {
-            cols.push(v);
+    for v in verdicts {
+        if !cols.contains(v) {
+            cols.push(v.clone());
         }
     }
     let short = |c: &str| -> String {
@@ -527,7 +538,7 @@ fn tables(
         s.push_str(&format!("| {r} |"));
         for c in &cols {
             let n = (0..cases.len())
-                .filter(|&i| &truths[i].label == r && &verdict_of(i) == c)
+                .filter(|&i| &truths[i].label == r && &verdicts[i] == c)
                 .count();
             if n == 0 {
                 s.push_str(" . |");
@@ -537,7 +548,18 @@ fn tables(
         }
         s.push('\n');
     }
-    // Counts per kind.
+    s
+}
+
+/// Counts of right verdicts per kind, wrong effects, the median check shrink
+/// and the summed time.
+fn counts(
+    cases: &[Case],
+    truths: &[Truth],
+    verdicts: &[String],
+    res: &[Result<Outcome, String>],
+) -> String {
+    let mut s = String::new();
     s.push_str("\nCounts per kind:\n\n");
     for kind in [
         Kind::Single,
@@ -551,7 +573,7 @@ fn tables(
             .collect();
         let right = idx
             .iter()
-            .filter(|&&i| cases[i].is_right(&verdict_of(i)))
+            .filter(|&&i| cases[i].is_right(&verdicts[i]))
             .count();
         let what = match kind {
             Kind::Single | Kind::Weak => "named the effect",
@@ -563,23 +585,23 @@ fn tables(
         if kind == Kind::Pair {
             let larger = idx
                 .iter()
-                .filter(|&&i| truths[i].larger == Some(verdict_of(i).as_str()))
+                .filter(|&&i| truths[i].larger == Some(verdicts[i].as_str()))
                 .count();
             s.push_str(&format!(", {larger}/{} named the larger", idx.len()));
         }
         s.push('\n');
     }
     let right_total = (0..cases.len())
-        .filter(|&i| cases[i].is_right(&verdict_of(i)))
+        .filter(|&i| cases[i].is_right(&verdicts[i]))
         .count();
     s.push_str(&format!("* all: {right_total}/{} right\n", cases.len()));
     // Wrong effects.
     let wrong: Vec<String> = (0..cases.len())
         .filter(|&i| {
-            let v = verdict_of(i);
+            let v = &verdicts[i];
             VOCABULARY[..10].contains(&v.as_str()) && !cases[i].truth.contains(&v.as_str())
         })
-        .map(|i| format!("{} ({} -> {})", cases[i].id, truths[i].label, verdict_of(i)))
+        .map(|i| format!("{} ({} -> {})", cases[i].id, truths[i].label, verdicts[i]))
         .collect();
     s.push_str(&format!(
         "\nVerdicts naming a wrong effect: {}{}\n",
@@ -591,7 +613,7 @@ fn tables(
         }
     ));
     let shrinks: Vec<f64> = (0..cases.len())
-        .filter(|&i| cases[i].is_right(&verdict_of(i)))
+        .filter(|&i| cases[i].is_right(&verdicts[i]))
         .filter_map(|i| res[i].as_ref().ok().map(|o| o.check_shrink))
         .collect();
     s.push_str(&format!(
@@ -606,7 +628,12 @@ fn tables(
     s.push_str(&format!(
         "Diagnosis time, summed over the cases: {secs:.0} s\n\n"
     ));
-    // Per case.
+    s
+}
+
+/// A row per case.
+fn per_case(cases: &[Case], truths: &[Truth], res: &[Result<Outcome, String>]) -> String {
+    let mut s = String::new();
     s.push_str("| case | label | truth | verdict | ok | isolation.equation | isolation.names | check shrink | s |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|\n");
     for (i, c) in cases.iter().enumerate() {
@@ -629,7 +656,6 @@ fn tables(
             )),
         }
     }
-    s.push('\n');
     s
 }
 

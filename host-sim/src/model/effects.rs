@@ -1229,8 +1229,20 @@ impl Effects {
         self.validate()
     }
 
-    /// Check every active effect's parameters.
+    /// Check every active effect's parameters: each within its range, then
+    /// the general families (valid, and never together with their named
+    /// form), then the named forms' own relations; the first failure is the
+    /// error.
     pub fn validate(&self) -> Result<(), EffectError> {
+        self.check_ranges()?;
+        self.check_families()?;
+        self.check_named_forms()
+    }
+
+    /// Every parameter of an active named effect within its range, and the
+    /// bounds of air, friction and the motor limit.
+    fn check_ranges(&self) -> Result<(), EffectError> {
+        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
         for k in self.active() {
             if k == EffectKind::SensorCalibration {
                 continue;
@@ -1249,7 +1261,6 @@ impl Effects {
                 }
             }
         }
-        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
         if let Some(a) = self.air {
             if !(1.0..=KAPPA_MAX).contains(&a.kappa) {
                 return Err(EffectError::Kappa(a.kappa));
@@ -1268,6 +1279,13 @@ impl Effects {
                 );
             }
         }
+        Ok(())
+    }
+
+    /// Each general family: valid when on, and not on together with its
+    /// named form.
+    fn check_families(&self) -> Result<(), EffectError> {
+        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
         // Each general family: its validity when on, whether its named form
         // is on too, and what to say in either case.
         let motor_most = VALID_SPAN * MOTOR_LIMIT_PARAMS[0].max;
@@ -1349,6 +1367,12 @@ impl Effects {
                 _ => {}
             }
         }
+        Ok(())
+    }
+
+    /// The named forms' relations between their parameters.
+    fn check_named_forms(&self) -> Result<(), EffectError> {
+        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
         if let Some(l) = self.leakage {
             if !(l.exponent > 0.0 && l.exponent <= 2.0) {
                 return constraint(EffectKind::Leakage, "exponent must be in (0, 2]");

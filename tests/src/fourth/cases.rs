@@ -282,21 +282,60 @@ pub fn controller(n: usize) -> Ctl {
     }
 }
 
+/// One case of the table: label, kind, the true identifiers, the effects,
+/// the magnitude in words, and the fit and check runs (scenario and
+/// controller number).
+type Row = (
+    &'static str,
+    Kind,
+    Vec<&'static str>,
+    Vec<Effect>,
+    &'static str,
+    (Scenario, usize),
+    (Scenario, usize),
+);
+
 /// Every case of the family, in report order.
 pub fn all() -> Vec<Case> {
+    let rows = [
+        singles_seals_and_mechanics(),
+        singles_sensors_servo_hose_accumulator(),
+        singles_calibration_and_parameters(),
+        weaker_pairs_and_clean(),
+        outside_the_vocabulary(),
+    ];
+    rows.into_iter()
+        .flatten()
+        .enumerate()
+        .map(|(i, (label, kind, truth, effects, magnitude, f, c))| {
+            let seed = 0x4_F0F0_0000 + 2 * i as u64;
+            Case {
+                id: format!("rig-{:02}", i + 1),
+                label,
+                kind,
+                truth,
+                effects,
+                magnitude,
+                fit: RunSpec {
+                    scenario: f.0,
+                    ctl: controller(f.1),
+                    seed,
+                },
+                check: RunSpec {
+                    scenario: c.0,
+                    ctl: controller(c.1),
+                    seed: seed + 1,
+                },
+            }
+        })
+        .collect()
+}
+
+/// Singles, two forms per identifier: seals, coupling and air.
+fn singles_seals_and_mechanics() -> Vec<Row> {
     use Kind::*;
     use Scenario::*;
-    type Row = (
-        &'static str,
-        Kind,
-        Vec<&'static str>,
-        Vec<Effect>,
-        &'static str,
-        (Scenario, usize),
-        (Scenario, usize),
-    );
-    let rows: Vec<Row> = vec![
-        // Singles: two forms per identifier.
+    vec![
         (
             "leak-orifice",
             Single,
@@ -369,6 +408,14 @@ pub fn all() -> Vec<Case> {
             (Chirp, 2),
             (LowLoad, 2),
         ),
+    ]
+}
+
+/// Singles, two forms per identifier: sensor delays, servo, hose wall and accumulator.
+fn singles_sensors_servo_hose_accumulator() -> Vec<Row> {
+    use Kind::*;
+    use Scenario::*;
+    vec![
         (
             "delay-lvdt",
             Single,
@@ -441,6 +488,14 @@ pub fn all() -> Vec<Case> {
             (Stairs, 5),
             (Ramps, 4),
         ),
+    ]
+}
+
+/// Singles, two forms per identifier: sensor calibration and parameters.
+fn singles_calibration_and_parameters() -> Vec<Row> {
+    use Kind::*;
+    use Scenario::*;
+    vec![
         (
             "cal-lvdt",
             Single,
@@ -491,6 +546,14 @@ pub fn all() -> Vec<Case> {
             (Stairs, 6),
             (Chirp, 2),
         ),
+    ]
+}
+
+/// Weaker versions of four singles, pairs, and clean rigs.
+fn weaker_pairs_and_clean() -> Vec<Row> {
+    use Kind::*;
+    use Scenario::*;
+    vec![
         // Weaker versions.
         (
             "leak-orifice-weak",
@@ -575,6 +638,14 @@ pub fn all() -> Vec<Case> {
             (Square, 5),
             (LoadSteps, 6),
         ),
+    ]
+}
+
+/// Effects outside the vocabulary.
+fn outside_the_vocabulary() -> Vec<Row> {
+    use Kind::*;
+    use Scenario::*;
+    vec![
         // Outside the vocabulary.
         (
             "spring",
@@ -621,31 +692,7 @@ pub fn all() -> Vec<Case> {
             (Chirp, 4),
             (Stairs, 5),
         ),
-    ];
-    rows.into_iter()
-        .enumerate()
-        .map(|(i, (label, kind, truth, effects, magnitude, f, c))| {
-            let seed = 0x4_F0F0_0000 + 2 * i as u64;
-            Case {
-                id: format!("rig-{:02}", i + 1),
-                label,
-                kind,
-                truth,
-                effects,
-                magnitude,
-                fit: RunSpec {
-                    scenario: f.0,
-                    ctl: controller(f.1),
-                    seed,
-                },
-                check: RunSpec {
-                    scenario: c.0,
-                    ctl: controller(c.1),
-                    seed: seed + 1,
-                },
-            }
-        })
-        .collect()
+    ]
 }
 
 /// Noise-level reference of each logged channel for [`visibility`]: xi and

@@ -205,11 +205,29 @@ impl Rig {
     pub fn rhs(&self, t: f64, x: &State, v_cmd: f64, ft: f64) -> State {
         let p = &self.p;
         let mut d = [0.0; NX];
-        let (xi, vi, xo, vo, p1, p2) = (x[XI], x[VI], x[XO], x[VO], x[P1], x[P2]);
+        let (p1, p2) = (x[P1], x[P2]);
         let vc = v_cmd.clamp(-p.v_max, p.v_max);
         let f_hyd = p.power_piston_force(p1, p2);
+        let (xp, vp, f_screw) = self.power_piston(x, f_hyd, &mut d);
+        self.servo(x, vc, f_screw, &mut d);
+        self.actuating_piston(x, ft, &mut d);
+        let qa = self.accumulator(x, &mut d);
+        let (q1, q2) = self.line_flows(t, x, vp, qa);
+        // Hose relaxation (nominal).
+        d[VF1] = (p.cf0 * p.l_of(p1) - x[VF1]) / p.tau_f;
+        d[VS1] = (p.cs0 * p.l_of(p1) - x[VS1]) / p.tau_s;
+        d[VF2] = (p.cf0 * p.l_of(p2) - x[VF2]) / p.tau_f;
+        d[VS2] = (p.cs0 * p.l_of(p2) - x[VS2]) / p.tau_s;
+        self.pressures(x, [q1, q2], xp, &mut d);
+        self.sensor_dynamics(x, &mut d);
+        d
+    }
 
-        // Power piston, directly on the screw or behind a coupling.
+    /// The power piston, directly on the screw or behind a coupling: its
+    /// position and speed for the line volumes and the force on the screw;
+    /// the coupling's derivatives into `d`.
+    fn power_piston(&self, x: &State, f_hyd: f64, d: &mut State) -> (f64, f64, f64) {
+        let (xi, vi) = (x[XI], x[VI]);
         let (mut xp, mut vp, mut f_screw) = (xi, vi, f_hyd);
         if let Some(c) = self.parts.coupling {
             let del = x[XP] - xi;
@@ -251,8 +269,13 @@ impl Rig {
             vp = x[VP];
             f_screw = -f_c;
         }
+        (xp, vp, f_screw)
+    }
 
-        // Servo drive.
+    /// The servo drive's derivatives into `d`.
+    fn servo(&self, x: &State, vc: f64, f_screw: f64, d: &mut State) {
+        let p = &self.p;
+        let vi = x[VI];
         d[XI] = vi;
         d[VI] = (vc - vi) / p.tau_m;
         match self.parts.drive {
@@ -283,8 +306,12 @@ impl Rig {
             }
             _ => {}
         }
+    }
 
-        // Actuating piston.
+    /// The actuating piston's derivatives (end stops, load, friction) into `d`.
+    fn actuating_piston(&self, x: &State, ft: f64, d: &mut State) {
+        let p = &self.p;
+        let (xo, vo, p1, p2) = (x[XO], x[VO], x[P1], x[P2]);
         let mut fs = 0.0;
         if xo > p.x_max {
             fs = -p.k_stop * (xo - p.x_max) - if vo > 0.0 { p.c_stop * vo } else { 0.0 };
@@ -332,8 +359,12 @@ impl Rig {
         };
         d[XO] = vo;
         d[VO] = (f_app + f_fr) / p.m;
+    }
 
-        // Accumulator.
+    /// The accumulator's derivatives into `d`; its flow into line 2, m^3/s.
+    fn accumulator(&self, x: &State, d: &mut State) -> f64 {
+        let p = &self.p;
+        let p2 = x[P2];
         let vg = x[VG];
         let pg_abs = self.gas_pabs(x);
         let qa = p.g_acc * (pg_abs - p.p_atm - p2);
@@ -360,8 +391,14 @@ impl Rig {
             }
             _ => {}
         }
+        qa
+    }
 
-        // Flows into the lines.
+    /// The net flows into lines 1 and 2 from the pistons, the accumulator,
+    /// the leakage and the effects outside the vocabulary, m^3/s.
+    fn line_flows(&self, t: f64, x: &State, vp: f64, qa: f64) -> (f64, f64) {
+        let p = &self.p;
+        let (vo, p1, p2) = (x[VO], x[P1], x[P2]);
         let mut q1 = p.ap1 * vp - p.aa1 * vo;
         let mut q2 = p.aa2 * vo - p.ap2 * vp + qa;
         let dp12 = p1 - p2;
@@ -382,15 +419,15 @@ impl Rig {
         if let Some(Effect::HoseRupture { t0, g_rate }) = self.parts.rupture {
             q2 -= g_rate * (t - t0).max(0.0) * p2.max(0.0);
         }
+        (q1, q2)
+    }
 
-        // Hose relaxation (nominal).
-        d[VF1] = (p.cf0 * p.l_of(p1) - x[VF1]) / p.tau_f;
-        d[VS1] = (p.cs0 * p.l_of(p1) - x[VS1]) / p.tau_s;
-        d[VF2] = (p.cf0 * p.l_of(p2) - x[VF2]) / p.tau_f;
-        d[VS2] = (p.cs0 * p.l_of(p2) - x[VS2]) / p.tau_s;
-
-        // Pressures: continuity of each line, with the effects' extra
-        // compliances and flows.
+    /// Pressures: continuity of each line, with the effects' extra
+    /// compliances and flows; the derivatives into `d` (the hose
+    /// relaxation's already there).
+    fn pressures(&self, x: &State, q: [f64; 2], xp: f64, d: &mut State) {
+        let p = &self.p;
+        let (xo, q1, q2) = (x[XO], q[0], q[1]);
         let lines = [
             (P1, q1 - d[VF1] - d[VS1], p.v1(xp, xo), NA1, BW1, ST1),
             (P2, q2 - d[VF2] - d[VS2], p.v2(xp, xo), NA2, BW2, ST2),
@@ -475,8 +512,11 @@ impl Rig {
                 _ => {}
             }
         }
+    }
 
-        // Sensor dynamics driven by the plant.
+    /// Sensor dynamics driven by the plant, into `d`.
+    fn sensor_dynamics(&self, x: &State, d: &mut State) {
+        let (xo, p1, p2) = (x[XO], x[P1], x[P2]);
         if let Some(Effect::LvdtFilterDelay { f_c_hz, .. }) = self.parts.lvdt_filter {
             let w = 2.0 * std::f64::consts::PI * f_c_hz;
             d[LV1] = x[LV2];
@@ -489,7 +529,6 @@ impl Rig {
                 d[imd] = w * w * (pj - x[im]) - 2.0 * zeta * w * x[imd];
             }
         }
-        d
     }
 
     /// One RK4 step of `p.dt` from `x` at time `t` with the inputs held, after

@@ -35,7 +35,14 @@ fn value_byte(i: usize, k: usize) -> [u8; 2] {
 }
 
 fn console_seeds() -> Vec<Seed> {
-    let beta1_exp = value_byte(8, 7);
+    let mut v = console_command_seeds();
+    v.extend(console_line_and_flash_seeds());
+    v
+}
+
+/// Console sessions of commands: queries, settings, motion, faults, refused
+/// commands.
+fn console_command_seeds() -> Vec<Seed> {
     vec![
         (
             "console",
@@ -131,6 +138,13 @@ fn console_seeds() -> Vec<Seed> {
                 ],
             ),
         ),
+    ]
+}
+
+/// Console sessions that exercise the line editor, lost bytes and the flash.
+fn console_line_and_flash_seeds() -> Vec<Seed> {
+    let beta1_exp = value_byte(8, 7);
+    vec![
         ("console", "gen-editing", {
             let mut v = session([0, 0, 0, 0], &["hlep\x08\x08elp", "\x01status", "", ""]);
             v.extend_from_slice(&[b'x'; 90]);

@@ -249,7 +249,7 @@ impl Rig {
         let p = &self.params;
         let ef = &self.effects;
         let mut d = [0.0; N_STATES];
-        let (xi, vi, xo, vo, p1, p2) = (x[0], x[1], x[2], x[3], x[4], x[5]);
+        let (xi, vi, xo, p1, p2) = (x[0], x[1], x[2], x[4], x[5]);
 
         // Power piston behind the coupling (the encoder reads xi).
         let (xpp, vpp) = if ef.backlash.is_some() {
@@ -265,7 +265,36 @@ impl Rig {
         };
         let f_oil = p.ap2_m2 * p2 - p.ap1_m2 * p1_port; // on the power piston, +x
 
-        // Servo and screw.
+        self.servo_and_screw(t_s, x, v_cmd_mps, f_oil, (xpp, vpp), &mut d);
+        self.actuating_piston(x, ft_n, &mut d);
+        let qa = self.accumulator(x, &mut d);
+        self.lines(x, (xpp, vpp), p1_port, qa, &mut d);
+        // LVDT conditioner (second-order Butterworth on the true Xo).
+        if let Some(l) = ef.lag {
+            if l.lvdt_corner_hz > 0.0 {
+                let w = 2.0 * std::f64::consts::PI * l.lvdt_corner_hz;
+                d[ix::XF] = x[ix::XF_DOT];
+                d[ix::XF_DOT] =
+                    w * w * (xo - x[ix::XF]) - std::f64::consts::SQRT_2 * w * x[ix::XF_DOT];
+            }
+        }
+        d
+    }
+
+    /// The servo and the screw, with the power piston behind the coupling:
+    /// their derivatives into `d`.
+    fn servo_and_screw(
+        &self,
+        t_s: f64,
+        x: &State,
+        v_cmd_mps: f64,
+        f_oil: f64,
+        (xpp, vpp): (f64, f64),
+        d: &mut State,
+    ) {
+        let p = &self.params;
+        let ef = &self.effects;
+        let (xi, vi) = (x[0], x[1]);
         let mut v_in = v_cmd_mps;
         if let Some(r) = ef.ripple {
             v_in += r.amplitude_mps * (2.0 * std::f64::consts::PI * r.freq_hz * t_s).sin();
@@ -298,8 +327,13 @@ impl Rig {
             d[ix::VP] =
                 (fc + f_oil - b.seal_nspm * vpp - b.seal_n * (vpp / 2.0e-3).tanh()) / b.piston_kg;
         }
+    }
 
-        // Actuating piston.
+    /// The actuating piston's derivatives (end stops, load, friction) into `d`.
+    fn actuating_piston(&self, x: &State, ft_n: f64, d: &mut State) {
+        let p = &self.params;
+        let ef = &self.effects;
+        let (xo, vo, p1, p2) = (x[2], x[3], x[4], x[5]);
         let mut fs = 0.0;
         if xo > p.x_max_m {
             fs = -p.k_stop_npm * (xo - p.x_max_m) - if vo > 0.0 { p.c_stop_nspm * vo } else { 0.0 };
@@ -318,8 +352,13 @@ impl Rig {
         }
         d[2] = vo;
         d[3] = (p.aa1_m2 * p1 - p.aa2_m2 * p2 - ft_n - p.c_visc_nspm * vo + fs - f_fric) / p.m_kg;
+    }
 
-        // Accumulator.
+    /// The accumulator's derivatives into `d`; its flow into line 2, m^3/s.
+    fn accumulator(&self, x: &State, d: &mut State) -> f64 {
+        let p = &self.params;
+        let ef = &self.effects;
+        let p2 = x[5];
         let vg = x[10];
         let p_acc = match ef.thermal {
             None => p.p_acc_pa(vg),
@@ -334,8 +373,15 @@ impl Rig {
             let t = x[ix::T_GAS];
             d[ix::T_GAS] = -(th.gamma - 1.0) * t * qa / vg + (T_AMBIENT_K - t) / th.tau_s;
         }
+        qa
+    }
 
-        // Flows.
+    /// Flows, hose walls and pressures of both lines (and the restriction's
+    /// port node): their derivatives into `d`.
+    fn lines(&self, x: &State, (xpp, vpp): (f64, f64), p1_port: f64, qa: f64, d: &mut State) {
+        let p = &self.params;
+        let ef = &self.effects;
+        let (xo, vo, p1, p2) = (x[2], x[3], x[4], x[5]);
         let q_leak = match ef.leakage {
             None => 0.0,
             Some(l) => {
@@ -382,17 +428,6 @@ impl Rig {
                 d[ipi + i] = e[i] * dp;
             }
         }
-
-        // LVDT conditioner (second-order Butterworth on the true Xo).
-        if let Some(l) = ef.lag {
-            if l.lvdt_corner_hz > 0.0 {
-                let w = 2.0 * std::f64::consts::PI * l.lvdt_corner_hz;
-                d[ix::XF] = x[ix::XF_DOT];
-                d[ix::XF_DOT] =
-                    w * w * (xo - x[ix::XF]) - std::f64::consts::SQRT_2 * w * x[ix::XF_DOT];
-            }
-        }
-        d
     }
 
     /// One classical RK4 step of `dt_s` from time `t_s`, inputs held, with the
