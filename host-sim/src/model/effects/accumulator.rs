@@ -1,0 +1,67 @@
+//! The accumulator: the gas temperature relaxing (`accumulator_thermal`) and
+//! its general family, the gas relaxation spectrum.
+
+use serde::Deserialize;
+
+/// Accumulator gas temperature relaxation.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AccumulatorThermal {
+    /// Thermal time constant of the gas, s.
+    pub tau_s: f64,
+}
+
+/// Ambient (and initial) gas temperature, K.
+pub const T_AMBIENT_K: f64 = 293.15;
+
+/// Time constants of the elements of a [`GasRelaxation`], s: half a decade
+/// apart from 0.1 s to 30 s.
+pub const GAS_TAUS_S: [f64; 6] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0];
+
+/// Largest sum of a [`GasRelaxation`]'s weights: the gas keeps a long-run
+/// polytropic index of at least `n_poly - 1` (0.4 on the nominal rig), so
+/// the accumulator never turns into a negative spring.
+pub const GAS_WEIGHT_SUM_MAX: f64 = 1.0;
+
+/// The general family of the accumulator (`accumulator_thermal` in any
+/// shape): the gas spring's stiffness relaxing over a spectrum of time
+/// constants (a Prony series of the gas). With `u = ln(V_gas0 / Vg)` the
+/// gas's log compression, element `k` carries a relaxed share `s_k` of the
+/// log pressure, `ds_k/dt = (w_k u - s_k) / tau_k` ([`GAS_TAUS_S`]), and the
+/// gas's absolute pressure is `P0_abs exp(n_poly u - sum_k s_k)`. A fast
+/// compression meets the nominal (adiabatic) index; held, the index falls by
+/// the weights of the elements that have relaxed ([`Self::index_after`]).
+/// One element of weight `n_poly - 1` is the named form's thermal
+/// relaxation to first order in the temperature; several are heat paths of
+/// different speeds (gas to a foam filling, to the shell, to the mount); a
+/// total above `n_poly - 1` is a bladder or membrane that creeps.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GasRelaxation {
+    /// Weight of each element, dimensionless (non-negative, sum at most
+    /// [`GAS_WEIGHT_SUM_MAX`]).
+    pub weights: [f64; 6],
+}
+
+impl GasRelaxation {
+    /// The gas's effective polytropic index a time `t_s` after a step
+    /// compression from rest, on a rig whose nominal index is `n_poly`:
+    /// `n_poly - sum_k w_k (1 - exp(-t / tau_k))`.
+    pub fn index_after(&self, n_poly: f64, t_s: f64) -> f64 {
+        n_poly
+            - self
+                .weights
+                .iter()
+                .zip(GAS_TAUS_S)
+                .map(|(w, tau)| w * (1.0 - (-t_s / tau).exp()))
+                .sum::<f64>()
+    }
+
+    /// Whether the family is usable: every weight finite and non-negative,
+    /// their sum at most [`GAS_WEIGHT_SUM_MAX`] (to rounding: a fit scales
+    /// its weights back onto the bound).
+    pub fn is_valid(&self) -> bool {
+        self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && self.weights.iter().sum::<f64>() <= GAS_WEIGHT_SUM_MAX * (1.0 + 1e-9)
+    }
+}

@@ -1,0 +1,26 @@
+//! The oil: entrained air (`air`).
+
+use serde::Deserialize;
+
+/// Entrained air.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Air {
+    /// Air volume fraction at atmospheric pressure.
+    pub fraction: f64,
+    /// Polytropic index of the air bubbles.
+    #[serde(default = "default_kappa")]
+    pub kappa: f64,
+}
+
+pub(super) fn default_kappa() -> f64 {
+    1.4
+}
+
+/// Effective bulk modulus of oil with entrained air at gauge pressure `p_pa`,
+/// returned as its inverse (the compressibility), 1/Pa.
+pub fn compressibility_ppa(a: &Air, beta_e_pa: f64, p_pa: f64, p_atm_pa: f64) -> f64 {
+    // The absolute pressure is kept above 5 % of atmospheric (no vacuum).
+    let p_abs = (p_pa + p_atm_pa).max(0.05 * p_atm_pa);
+    1.0 / beta_e_pa + a.fraction / (a.kappa * p_abs) * libm::pow(p_atm_pa / p_abs, 1.0 / a.kappa)
+}

@@ -1,0 +1,145 @@
+//! Seals: internal leakage across the pistons and seal friction on the actuating
+//! piston, each as its named form and its general family.
+
+use serde::Deserialize;
+
+use super::common::{interp, one};
+
+/// Internal leakage across the pistons.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Leakage {
+    /// Conductance from line 1 to line 2 at a 1 MPa difference, m^3/(s Pa).
+    pub g_m3pspa: f64,
+    /// Flow exponent: 1 laminar (Q proportional to dP), 0.5 orifice-like.
+    #[serde(default = "one")]
+    pub exponent: f64,
+}
+
+/// Reference pressure difference of the leakage conductance, Pa.
+pub const LEAK_P_REF_PA: f64 = 1e6;
+/// Pressure difference below which the leakage stays laminar, Pa.
+pub const LEAK_P_SMOOTH_PA: f64 = 1e4;
+
+/// Pressure differences of the knots of a [`LeakageMap`], Pa.
+pub const LEAK_DP_PA: [f64; 6] = [0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6];
+
+/// The general family of `leakage` (internal leakage of any shape over the
+/// pressure difference and the pressure level): the flow from line 1 to
+/// line 2 is `sign(dP) L(abs(dP)) + g dP (P1 + P2) / (2 MPa)`, dP = P1 - P2,
+/// `L` piecewise linear between the knots [`LEAK_DP_PA`] (0 at 0, extended
+/// along its last segment). A straight `L` is laminar flow, a bent one an
+/// orifice or a seal lip that opens; `g` is a gap that widens with the
+/// pressure.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LeakageMap {
+    /// Flow at the knots 0.25, 0.5, 1, 2, 4 MPa, m^3/s (non-negative).
+    pub q_m3ps: [f64; 5],
+    /// Conductance per MPa of mean line pressure, m^3/(s Pa) (non-negative).
+    #[serde(default)]
+    pub g_m3pspa: f64,
+}
+
+impl LeakageMap {
+    /// The leakage flow from line 1 to line 2, m^3/s.
+    pub fn flow(&self, p1_pa: f64, p2_pa: f64) -> f64 {
+        let dp = p1_pa - p2_pa;
+        let mut q = [0.0; 6];
+        q[1..].copy_from_slice(&self.q_m3ps);
+        let mean = (0.5 * (p1_pa + p2_pa) / SEAL_P_REF_PA).max(0.0);
+        interp(&LEAK_DP_PA, &q, dp.abs(), false).copysign(dp) + self.g_m3pspa * dp * mean
+    }
+
+    /// Whether the map is usable: every value finite and non-negative.
+    pub fn is_valid(&self) -> bool {
+        self.q_m3ps
+            .iter()
+            .chain([&self.g_m3pspa])
+            .all(|q| q.is_finite() && *q >= 0.0)
+    }
+}
+
+/// Leakage flow from line 1 to line 2, m^3/s.
+pub fn leak_flow_m3ps(l: &Leakage, p1_pa: f64, p2_pa: f64) -> f64 {
+    let dp = p1_pa - p2_pa;
+    if l.exponent == 1.0 {
+        return l.g_m3pspa * dp;
+    }
+    let r = (dp.abs() + LEAK_P_SMOOTH_PA) / LEAK_P_REF_PA;
+    l.g_m3pspa * dp * libm::pow(r, l.exponent - 1.0)
+}
+
+/// Seal friction on the actuating piston beyond the viscous term.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    /// Coulomb (sliding) friction, N.
+    pub coulomb_n: f64,
+    /// Static (breakaway) friction, N (>= coulomb_n).
+    pub static_n: f64,
+    /// Stribeck velocity, m/s.
+    #[serde(default = "default_stribeck")]
+    pub stribeck_mps: f64,
+}
+
+fn default_stribeck() -> f64 {
+    2e-3
+}
+
+/// Velocity below which friction is smoothed to zero (tanh), m/s.
+pub const FRICTION_SMOOTH_MPS: f64 = 1e-4;
+
+/// Speeds of the knots of a [`FrictionMap`], m/s: dense where Stribeck
+/// curves bend, up to the servo's 0.1 m/s times the area ratio.
+pub const FRICTION_SPEEDS_MPS: [f64; 6] = [0.0, 0.5e-3, 2e-3, 8e-3, 30e-3, 100e-3];
+
+/// Pressure that scales the pressure-dependent parts of the seal maps, Pa.
+pub const SEAL_P_REF_PA: f64 = 1e6;
+
+/// The general family of `friction` (seal friction of any shape over speed
+/// and pressure): the friction on the actuating piston has the magnitude
+/// `S(abs(v)) + k (P1 + P2) / 1 MPa`, `S` piecewise linear between the
+/// knots [`FRICTION_SPEEDS_MPS`] (flat beyond), and opposes the velocity
+/// (smoothed as the named form is, over 0.1 mm/s). A falling `S` is a
+/// Stribeck curve, a rising one adds viscous-like drag, `k` is the load
+/// of seals that the line pressures press against the rod and bore.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionMap {
+    /// Friction at the knot speeds with both lines at 0 Pa, N (non-negative).
+    pub force_n: [f64; 6],
+    /// Friction added per MPa of P1 + P2, N/MPa (non-negative).
+    #[serde(default)]
+    pub n_per_mpa: f64,
+}
+
+impl FrictionMap {
+    /// The friction's magnitude at the speed `v_mps` (its magnitude) and
+    /// the line pressures, N.
+    pub fn magnitude_n(&self, v_mps: f64, p1_pa: f64, p2_pa: f64) -> f64 {
+        let s = interp(&FRICTION_SPEEDS_MPS, &self.force_n, v_mps.abs(), true);
+        let p = ((p1_pa + p2_pa) / SEAL_P_REF_PA).max(0.0);
+        s + self.n_per_mpa * p
+    }
+
+    /// The friction force on the actuating piston (sign of -v), N.
+    pub fn force(&self, v_mps: f64, p1_pa: f64, p2_pa: f64) -> f64 {
+        -self.magnitude_n(v_mps, p1_pa, p2_pa) * libm::tanh(v_mps / FRICTION_SMOOTH_MPS)
+    }
+
+    /// Whether the map is usable: every value finite and non-negative.
+    pub fn is_valid(&self) -> bool {
+        self.force_n
+            .iter()
+            .chain([&self.n_per_mpa])
+            .all(|f| f.is_finite() && *f >= 0.0)
+    }
+}
+
+/// Friction force opposing the actuating piston's velocity, N (sign of -v).
+pub fn friction_force_n(f: &Friction, v_mps: f64) -> f64 {
+    let r = v_mps / f.stribeck_mps;
+    let mag = f.coulomb_n + (f.static_n - f.coulomb_n) * libm::exp(-r * r);
+    -mag * libm::tanh(v_mps / FRICTION_SMOOTH_MPS)
+}

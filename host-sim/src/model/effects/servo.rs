@@ -1,0 +1,118 @@
+//! The servo drive: the named `motor_limit` and its general family, the force
+//! envelope over speed.
+
+use serde::Deserialize;
+
+/// Servo torque and acceleration limits.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MotorLimit {
+    /// Largest axial force of the drive on the screw, N.
+    pub force_max_n: f64,
+    /// Motor and screw inertia reflected to the screw axis, kg.
+    pub mass_eq_kg: f64,
+    /// Highest speed the drive reaches, m/s.
+    #[serde(default = "default_speed_max")]
+    pub speed_max_mps: f64,
+}
+
+fn default_speed_max() -> f64 {
+    dca_core::params::PlantParams::NOMINAL.v_max_mps
+}
+
+/// Servo acceleration under the motor limit: the speed loop asks for
+/// `a_mps2` towards its target against the hydraulic force `f_load_n` on the
+/// power piston (positive opposing extension); the drive's force is clamped.
+pub fn motor_accel(m: &MotorLimit, a_mps2: f64, f_load_n: f64) -> f64 {
+    let f = (m.mass_eq_kg * a_mps2 + f_load_n).clamp(-m.force_max_n, m.force_max_n);
+    (f - f_load_n) / m.mass_eq_kg
+}
+
+/// Speeds of the knots of a [`ServoEnvelope`], m/s: 0 to the nominal
+/// command limit (0.1 m/s) in steps of 20 mm/s.
+pub const ENVELOPE_SPEEDS_MPS: [f64; 6] = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10];
+
+/// The general family of the servo (`motor_limit` in any shape): the
+/// drive's force envelope over speed. The speed loop asks for the force
+/// `m a + F` (a = (v_target - v) / tau, F the hydraulic force on the power
+/// piston); while motoring (force and speed of one sign) it gets at most
+/// the available force `A(abs(v))`, piecewise linear between the knots and
+/// flat beyond the last; while braking at most `A(0)`. A constant `A` is
+/// the named form's force limit, `A` falling to zero at some speed its speed
+/// cap, and any torque-speed curve lies in between.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ServoEnvelope {
+    /// Motor and screw inertia reflected to the screw axis, kg.
+    pub mass_eq_kg: f64,
+    /// Available force at [`ENVELOPE_SPEEDS_MPS`], N (non-increasing).
+    pub force_n: [f64; 6],
+}
+
+impl ServoEnvelope {
+    /// Available (motoring) force at `speed_mps` (its magnitude), N.
+    pub fn available_n(&self, speed_mps: f64) -> f64 {
+        let s = speed_mps.abs();
+        let dv = ENVELOPE_SPEEDS_MPS[1];
+        let last = self.force_n.len() - 1;
+        let x = s / dv;
+        if x.is_nan() || x >= last as f64 {
+            return self.force_n[last];
+        }
+        let i = x as usize;
+        let w = x - i as f64;
+        self.force_n[i] + w * (self.force_n[i + 1] - self.force_n[i])
+    }
+
+    /// Servo acceleration when the speed loop asks for `a_mps2` at the
+    /// speed `v_mps` against the hydraulic force `f_load_n` (positive
+    /// opposing extension).
+    pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
+        let f = self.mass_eq_kg * a_mps2 + f_load_n;
+        let cap = if f * v_mps >= 0.0 {
+            self.available_n(v_mps)
+        } else {
+            self.force_n[0]
+        };
+        (f.clamp(-cap, cap) - f_load_n) / self.mass_eq_kg
+    }
+
+    /// Whether the envelope is usable: finite, a positive mass and force at
+    /// rest, forces non-negative and non-increasing with speed.
+    pub fn is_valid(&self) -> bool {
+        self.mass_eq_kg.is_finite()
+            && self.mass_eq_kg > 0.0
+            && self.force_n[0].is_finite()
+            && self.force_n[0] > 0.0
+            && self.force_n.iter().all(|f| f.is_finite() && *f >= 0.0)
+            && self.force_n.windows(2).all(|w| w[1] <= w[0])
+    }
+}
+
+/// The servo model a rig runs: nominal, the named `motor_limit` form, or
+/// its general family.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Servo<'a> {
+    /// The nominal first-order servo.
+    Nominal,
+    /// The named force limit and speed cap.
+    Limit(&'a MotorLimit),
+    /// The learned force envelope.
+    Envelope(&'a ServoEnvelope),
+}
+
+/// Servo acceleration towards the speed command `vc_mps` (already within
+/// the nominal +-v_max) from the speed `v_mps`: the nominal first-order
+/// servo with time constant `tau_s`, or under the named limit its speed cap
+/// and force limit, or under the envelope its force over speed, against the
+/// hydraulic force `f_load_n`.
+pub fn servo_accel(servo: Servo<'_>, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> f64 {
+    match servo {
+        Servo::Limit(m) => {
+            let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
+            motor_accel(m, (target - v_mps) / tau_s, f_load_n)
+        }
+        Servo::Envelope(s) => s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n),
+        Servo::Nominal => (vc_mps - v_mps) / tau_s,
+    }
+}
