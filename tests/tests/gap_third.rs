@@ -1,4 +1,4 @@
-//! The third family of rigs (tests/src/third, docs/gap-third.md).
+//! The third family of rigs (tests/src/third, docs/gap-validation.md).
 //!
 //! * `plant_matches_the_specification_vectors` (fast): this family's own plant
 //!   against the unit-test vector of docs/model.md section 4.2 and the rest state

@@ -7,7 +7,7 @@
 //! ([`plant`]), its own effect forms ([`effects`]), sensors and random numbers
 //! ([`sensors`], [`rng`]), scenarios that differ from the other suites'
 //! ([`scenario`]) and the case list with the expected verdicts ([`cases`]). Only
-//! the control laws come from `dca_core`. docs/gap-third.md describes it and
+//! the control laws come from `dca_core`. docs/gap-validation.md describes it and
 //! publishes its confusion tables.
 
 pub mod cases;
