@@ -181,8 +181,7 @@ fn conclude(
 /// The learned general families' starting points from the closures of
 /// their equations: the coupling's deflection at the screw map's knots
 /// (the closure's odd tents over the same forces, each weight the
-/// deflection at its knot), as increments in units of 10 um; the servo map
-/// as the servo closure fitted it (the same features).
+/// deflection at its knot), as increments in units of 10 um.
 fn learned_starts(iso: &Isolation) -> LearnedStarts {
     let screw = iso
         .weights(Site::CouplingIn, Dependence::Force)

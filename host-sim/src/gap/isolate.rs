@@ -130,8 +130,8 @@ impl Isolation {
         self.best().is_some_and(|c| c.closure.names().is_none())
     }
 
-    /// The effects worth fitting as models: those the comparable closures
-    /// name, and the first three effects the best closures name (the
+    /// The effects worth fitting as models: those a verdict may name
+    /// ([`Isolation::allows`]), and the first three effects the best closures name (the
     /// best partial candidates of an `unexplained`), in
     /// [`EffectKind::ALL`] order.
     pub fn to_fit(&self) -> Vec<EffectKind> {
