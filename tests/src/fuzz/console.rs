@@ -345,7 +345,7 @@ fn check_settings(console: &Console, model: &Model, line: &str) {
     let s = console.settings();
     for p in &PARAMS {
         let v = p.get(s);
-        let (lo, hi) = (p.min.value(), p.max.value());
+        let (lo, hi) = (p.min, p.max);
         assert!(
             v >= lo && v <= hi,
             "{line:?}: {} = {v:e} is outside [{lo:e}, {hi:e}]",
