@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use host_sim::hil::board::qemu::firmware_elf;
+use host_sim::hil::board::qemu::{find_qemu, firmware_elf, QemuOptions};
 use host_sim::hil::board::session::{parse_script, run_session, SessionOptions, Target};
 
 use super::args::{input_file, seconds};
@@ -45,7 +45,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let target = match (a.port, a.qemu) {
         (Some(p), false) => Target::Port(p, a.baud),
-        (None, true) => Target::Qemu(firmware_elf(a.elf)?, Default::default()),
+        (None, true) => {
+            // Before any build: a missing QEMU is said at once.
+            let opts = QemuOptions::default();
+            find_qemu(&opts.qemu)?;
+            Target::Qemu(firmware_elf(a.elf)?, opts)
+        }
         _ => anyhow::bail!("give --port DEVICE (a board) or --qemu"),
     };
     let report = run_session(&SessionOptions {

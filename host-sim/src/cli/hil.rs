@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use host_sim::hil::board::qemu::{firmware_elf, QemuOptions};
+use host_sim::hil::board::qemu::{find_qemu, firmware_elf, QemuOptions};
 use host_sim::hil::{run_hil_qemu, run_hil_serial, run_software, SerialOptions};
 use host_sim::sim::request::resolve;
 
@@ -21,7 +21,9 @@ pub struct Args {
     #[arg(long, default_value_t = 2.0)]
     timeout: f64,
     /// Set the firmware's link timeout (`hil.timeout_ms`) through the console
-    /// before arming (needs --console or --qemu; default: the board's setting).
+    /// before arming (needs --console or --qemu). Default: the board's own
+    /// setting (factory 100 ms); with --qemu 5000, since the emulated board's
+    /// clock follows a host that is not real time.
     #[arg(long)]
     link_timeout_ms: Option<u32>,
     /// Start the emulated firmware (QEMU netduinoplus2) instead of a board.
@@ -62,6 +64,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             run_hil_serial(&spec, &port, &opts)?
         }
         (None, true) => {
+            // Before any build: a missing QEMU is said at once.
+            find_qemu(&QemuOptions::default().qemu)?;
             let elf = firmware_elf(a.elf)?;
             run_hil_qemu(&spec, &elf, &QemuOptions::default(), a.link_timeout_ms)?
         }

@@ -627,19 +627,24 @@ pub fn run_hil_serial(
     )
 }
 
+/// The firmware's link timeout (`hil.timeout_ms`) [`run_hil_qemu`] sets unless
+/// told otherwise, ms. The emulated board keeps time by the host's clock
+/// (QEMU's `-icount sleep=on`), and the host is not real time: on a loaded
+/// machine a round trip through QEMU took up to 0.94 s (a build and a fuzzer
+/// running), far beyond the factory 100 ms a board keeps.
+pub const EMULATED_LINK_TIMEOUT_MS: u32 = 5_000;
+
 /// Run `spec` through the emulated firmware: start QEMU on `elf` with its
 /// USARTs on ptys, then exactly the board's path ([`run_hil_serial`]'s), and
-/// end QEMU. `link_timeout_ms` as in [`SerialOptions`]: the emulated board
-/// keeps time by the host's clock, so on a loaded host a frame can be later
-/// than the factory 100 ms (round trips of up to 0.9 s were measured with a
-/// build and a fuzzer running); runs that test bit identity, not timing, set
-/// a longer one.
+/// end QEMU. `link_timeout_ms` as in [`SerialOptions`], except that `None`
+/// sets [`EMULATED_LINK_TIMEOUT_MS`] rather than keeping the factory setting.
 pub fn run_hil_qemu(
     spec: &RunSpec,
     elf: &Path,
     opts: &QemuOptions,
     link_timeout_ms: Option<u32>,
 ) -> Result<HilTrace, HilError> {
+    let link_timeout_ms = Some(link_timeout_ms.unwrap_or(EMULATED_LINK_TIMEOUT_MS));
     check_board_model(spec)?;
     let emu = Emulator::start(elf, opts)?;
     let mut console = ConsoleClient::connect(
