@@ -49,7 +49,8 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.what.check_files()?;
-    let spec = resolve(&a.what.request(a.seed, None))?;
+    // The board's tick (the default): the only one a board runs.
+    let spec = resolve(&a.what.request(a.seed, None, None))?;
     let trace = match (a.port, a.qemu) {
         (Some(port), false) => {
             if a.link_timeout_ms.is_some() && a.console.is_none() {

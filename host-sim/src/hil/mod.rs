@@ -15,8 +15,10 @@
 //! in `round(1e-3 / dt)` RK4 steps of the spec's plant step `dt` (1e-4 s
 //! nominal), the command held and the load evaluated at each plant step. One
 //! run-log row is written per tick, before the plant moves (docs/interfaces.md
-//! section 1). This differs from [`crate::sim::run`], whose controller ticks at
-//! the plant step: compare HIL runs with [`run_software`], not with `sim::run`.
+//! section 1). [`crate::sim::run`] ticks its controller the same way (at the
+//! board's 1 ms by default) but calls dca-core's `Controller` without the
+//! supervisor: [`run_software`] is the bit-exact reference of a HIL run, and
+//! `sim::run` agrees with it to the run log's precision.
 //!
 //! # The exchange
 //! Per tick the host sends a [`SampleFrame`] (reference and sensor readings as
