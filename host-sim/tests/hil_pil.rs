@@ -18,7 +18,7 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use host_sim::hil::board::console::{ConsoleClient, CONSOLE_BAUD};
 use host_sim::hil::board::port::SerialLink;
 use host_sim::hil::board::qemu::{Emulator, QemuOptions};
-use host_sim::hil::{run_hil_qemu, run_software, HIL_BAUD};
+use host_sim::hil::{run_hil_qemu, run_hil_qemu_with, run_software, HIL_BAUD};
 use host_sim::io::runlog::RunLog;
 use host_sim::model::plant::Plant;
 use host_sim::model::scenario::Scenario;
@@ -421,4 +421,132 @@ fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
         String::from_utf8_lossy(&out.stderr)
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The board's own record of a HIL run (`record 10` before, `dump` after,
+/// 10 000 rows of 1 ms: a 10 s record dumped and read back whole) equals the
+/// host's log of the same run column by column within the record's stated
+/// resolution (dca_app::record): the sensor columns are the codes the board
+/// read (the host models the board's ADCs and encoder: realistic sensors),
+/// the reference and command within half of 2^-23, the faults exact.
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn a_record_made_during_a_hil_run_equals_the_hosts_log() {
+    use dca_app::record::{REF_LSB_M, VCMD_LSB_MPS};
+    use dca_app::settings::Calibration;
+    let mut s = spec_with("stepload", ControllerKind::CmpcEso, Preset::Limit);
+    s.sensors = SensorMode::Realistic;
+    s.seed = 7;
+    let (trace, rec) = run_hil_qemu_with(&s, &elf(), &QemuOptions::default(), None, true)
+        .expect("HIL run with the record");
+    let rec = rec.expect("a record");
+    assert_eq!(trace.rows.len(), 10_000);
+    assert_eq!(rec.rows.len(), trace.rows.len(), "a 10 s record, whole");
+    assert_eq!(rec.controller(), Some(ControllerKind::CmpcEso));
+    let cal = Calibration::nominal();
+    for (i, (h, r)) in trace.rows.iter().zip(&rec.rows).enumerate() {
+        let at = format!("tick {i}");
+        assert!(
+            (r.ref_m - f64::from(h.ref_m)).abs() <= REF_LSB_M / 2.0,
+            "{at}: ref {} vs {}",
+            r.ref_m,
+            h.ref_m
+        );
+        assert!(
+            (r.v_cmd_mps - f64::from(h.reply.v_cmd_mps)).abs() <= VCMD_LSB_MPS / 2.0,
+            "{at}: command {} vs {}",
+            r.v_cmd_mps,
+            h.reply.v_cmd_mps
+        );
+        assert_eq!(r.faults, h.reply.faults, "{at}");
+        // The same code as the board read, the value within f32 rounding
+        // (the board computes offset + gain * code in f32, the host's sensor
+        // model in f64).
+        for (name, got, sent, ch) in [
+            ("xo", r.sample.xo_m, h.sample.xo_m, cal.lvdt),
+            ("p1", r.sample.p1_pa, h.sample.p1_pa, cal.p1),
+            ("p2", r.sample.p2_pa, h.sample.p2_pa, cal.p2),
+            ("ft", r.sample.ft_n, h.sample.ft_n, cal.force),
+            ("xi", r.sample.xi_m, h.sample.xi_m, cal.encoder),
+        ] {
+            let code =
+                |v: f32| ((f64::from(v) - f64::from(ch.offset)) / f64::from(ch.gain)).round();
+            assert_eq!(
+                code(got),
+                code(sent),
+                "{at}: {name} recorded {got}, read {sent}"
+            );
+            assert!(
+                (got - sent).abs() <= 4.0 * f32::EPSILON * sent.abs().max(ch.offset.abs()),
+                "{at}: {name} recorded {got}, read {sent}"
+            );
+        }
+    }
+    // The command column is a run's: it moves.
+    assert!(rec.rows.iter().any(|r| r.v_cmd_mps.abs() > 1e-3));
+}
+
+/// `host-sim console --script ... --capture` with `record` and `dump`: the
+/// capture is the board's record, a 1 ms run log that `host-sim gap` reads.
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn a_console_dump_is_captured_as_a_1_ms_run_log() {
+    let dir = std::env::temp_dir().join(format!("dca-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let script = dir.join("record.txt");
+    std::fs::write(
+        &script,
+        "record 3\narm\ngoto 20\nsleep 2\ngoto 5\nsleep 2\ndump\ndisarm\n",
+    )
+    .unwrap();
+    let out_csv = dir.join("record.csv");
+    let out = host_sim()
+        .args(["console", "--qemu", "--elf"])
+        .arg(elf())
+        .arg("--script")
+        .arg(&script)
+        .arg("--capture")
+        .arg(&out_csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "{err}\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let log = RunLog::read(&out_csv).unwrap();
+    // The emulator's clock may lag the script's sleeps on a loaded machine:
+    // `dump` then ends the record early; every row it has is there.
+    assert!(log.len() > 500 && log.len() <= 3000, "{} rows", log.len());
+    assert!((log.dt_s() - 0.001).abs() < 1e-12, "step {}", log.dt_s());
+    let xi = log.channel("xi_m").unwrap();
+    let top = xi.iter().cloned().fold(f64::MIN, f64::max);
+    assert!(top > 0.01, "the piston should move towards 20 mm: {top}");
+    let text = std::fs::read_to_string(&out_csv).unwrap();
+    assert!(text.contains("# source=dca-firmware record"));
+    // `gap` reads it as it is (a simulated run of the nominal rig as the check).
+    let check = dir.join("check.csv");
+    let out = host_sim()
+        .args(["run", "--scenario", "step", "--controller", "mpc-eso"])
+        .args(["--sensors", "realistic", "--log"])
+        .arg(&check)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let out = host_sim()
+        .args(["gap", "--fit"])
+        .arg(&out_csv)
+        .arg("--check")
+        .arg(&check)
+        .arg("--json")
+        .arg(dir.join("gap.json"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "gap: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

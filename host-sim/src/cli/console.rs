@@ -26,7 +26,8 @@ pub struct Args {
     /// (blank lines and `#` comments skipped; `sleep S` pauses S seconds).
     #[arg(long)]
     script: Option<PathBuf>,
-    /// Write the telemetry stream (after `telemetry on`) to this run log.
+    /// Write the telemetry stream (after `telemetry on`) to this run log;
+    /// where the session issues `dump`, the board's record instead (1 ms).
     #[arg(long)]
     capture: Option<PathBuf>,
     /// Longest wait for a reply, s.

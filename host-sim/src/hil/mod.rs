@@ -51,6 +51,7 @@ use dca_core::controller::{ControllerConfig, Preset, Sample};
 use self::board::console::{ConsoleClient, CONSOLE_BAUD};
 use self::board::port::SerialLink;
 use self::board::qemu::{Emulator, QemuOptions};
+use self::board::record::BoardRecord;
 use self::board::BoardError;
 use crate::model::rig::Rig;
 use crate::model::scenario::tick_time_s;
@@ -72,6 +73,9 @@ pub enum HilError {
     /// The console or a port.
     #[error(transparent)]
     Board(#[from] BoardError),
+    /// The board's record of the run could not be read whole.
+    #[error("the board's record of the run: {0}")]
+    Record(#[from] crate::hil::board::record::DumpError),
     /// The first sample frame got no valid reply.
     #[error(
         "no HIL reply on {port} at {baud} baud within {secs:.1} s: sent a frame delimiter and \
@@ -548,6 +552,8 @@ pub struct SerialOptions {
     /// The firmware's link timeout (`hil.timeout_ms`) to set through the
     /// console before arming; `None` keeps the board's setting.
     pub link_timeout_ms: Option<u32>,
+    /// Have the board record every tick of the run (needs `console`).
+    pub record: bool,
 }
 
 impl Default for SerialOptions {
@@ -557,11 +563,14 @@ impl Default for SerialOptions {
             console: None,
             timeout: Duration::from_secs(2),
             link_timeout_ms: None,
+            record: false,
         }
     }
 }
 
-/// The lockstep run over an open console (optional) and HIL port.
+/// The lockstep run over an open console (optional) and HIL port; with
+/// `record` (and a console) the board also records every tick of the run
+/// (`record S` before, `dump` after).
 fn run_on_ports(
     spec: &RunSpec,
     console: Option<&mut ConsoleClient>,
@@ -569,10 +578,15 @@ fn run_on_ports(
     timeout: Duration,
     link_timeout_ms: Option<u32>,
     source: &str,
-) -> Result<HilTrace, HilError> {
+    record: bool,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
     let mut console = console;
     if let Some(c) = console.as_deref_mut() {
         prepare(c, spec, link_timeout_ms)?;
+        if record {
+            let ticks = spec.scenario.n_steps(BOARD_DT_S);
+            c.must(&format!("record {:.3}", ticks as f64 * BOARD_DT_S))?;
+        }
     }
     let mut stepper = LinkStepper::new(link, timeout)?;
     let trace = run_lockstep(spec, &mut stepper, source);
@@ -581,9 +595,14 @@ fn run_on_ports(
         let end = c.must("disarm").and_then(|_| c.must("hil off"));
         let trace = trace?;
         end?;
-        return Ok(trace);
+        let rec = if record {
+            Some(BoardRecord::from_reply(&c.command("dump")?)?)
+        } else {
+            None
+        };
+        return Ok((trace, rec));
     }
-    trace
+    trace.map(|t| (t, None))
 }
 
 /// Refuse a controller whose design model is not the nominal plant: the
@@ -610,6 +629,21 @@ pub fn run_hil_serial(
     port: &str,
     opts: &SerialOptions,
 ) -> Result<HilTrace, HilError> {
+    run_hil_serial_with(spec, port, opts).map(|(t, _)| t)
+}
+
+/// [`run_hil_serial`], and with `opts.record` (and a console) the board's
+/// own record of every tick of the run.
+pub fn run_hil_serial_with(
+    spec: &RunSpec,
+    port: &str,
+    opts: &SerialOptions,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
+    if opts.record && opts.console.is_none() {
+        return Err(HilError::Spec(
+            "the board's record needs its console (`record`, `dump`)".into(),
+        ));
+    }
     check_board_model(spec)?;
     let mut console = match &opts.console {
         Some(c) => Some(ConsoleClient::connect(
@@ -626,6 +660,7 @@ pub fn run_hil_serial(
         opts.timeout,
         opts.link_timeout_ms,
         "serial",
+        opts.record,
     )
 }
 
@@ -646,6 +681,19 @@ pub fn run_hil_qemu(
     opts: &QemuOptions,
     link_timeout_ms: Option<u32>,
 ) -> Result<HilTrace, HilError> {
+    run_hil_qemu_with(spec, elf, opts, link_timeout_ms, false).map(|(t, _)| t)
+}
+
+/// [`run_hil_qemu`], and with `record` the emulated board's own record of
+/// every tick of the run (`record S` before the run, `dump` after it; see
+/// dca_app::record).
+pub fn run_hil_qemu_with(
+    spec: &RunSpec,
+    elf: &Path,
+    opts: &QemuOptions,
+    link_timeout_ms: Option<u32>,
+    record: bool,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
     let link_timeout_ms = Some(link_timeout_ms.unwrap_or(EMULATED_LINK_TIMEOUT_MS));
     check_board_model(spec)?;
     let emu = Emulator::start(elf, opts)?;
@@ -661,6 +709,7 @@ pub fn run_hil_qemu(
         opts.timeout,
         link_timeout_ms,
         "qemu",
+        record,
     )?;
     emu.quit(&mut console)?;
     Ok(trace)

@@ -10,16 +10,20 @@
 //!   come in time.
 //! * `--capture OUT.csv`: the telemetry stream (after `telemetry on`, until
 //!   `telemetry off` or the end of the session) written as a run log; see
-//!   [`super::capture`] for its time step.
+//!   [`super::capture`] for its time step. Where the session issues `dump`,
+//!   OUT.csv is the board's record instead (the last dump), a 1 ms run log
+//!   ([`super::record`]); a dump with a lost or damaged frame fails the
+//!   session.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use super::capture::Capture;
-use super::console::{ConsoleClient, LineKind, Sink, CONSOLE_BAUD};
+use super::console::{ConsoleClient, LineKind, Reply, Sink, CONSOLE_BAUD};
 use super::port::SerialLink;
 use super::qemu::{Emulator, QemuOptions};
+use super::record::BoardRecord;
 use super::BoardError;
 
 /// One step of a console script.
@@ -130,6 +134,29 @@ pub struct SessionReport {
     pub step_s: Option<f64>,
     /// Why the capture is incomplete or missing, if it is.
     pub capture_problem: Option<String>,
+    /// The last `dump`: the record read, or why it could not be.
+    pub dump: Option<Result<BoardRecord, String>>,
+}
+
+impl SessionReport {
+    /// Count one reply to `line`; a reply with binary frames (`dump`) is
+    /// read as the board's record. Shown as text without the frames.
+    fn reply(&mut self, line: &str, reply: &Reply) {
+        print!("{}", reply.text());
+        self.sent += 1;
+        if !reply.is_ok() {
+            self.errors += 1;
+        }
+        let is_dump = line.split_ascii_whitespace().next() == Some("dump");
+        if is_dump && reply.is_ok() {
+            let r = BoardRecord::from_reply(reply).map_err(|e| e.to_string());
+            match &r {
+                Ok(rec) => eprintln!("record of {} rows (1 ms) received", rec.rows.len()),
+                Err(e) => eprintln!("{e}"),
+            }
+            self.dump = Some(r);
+        }
+    }
 }
 
 impl SessionReport {
@@ -176,14 +203,46 @@ pub fn run_session(opts: &SessionOptions) -> Result<SessionReport, BoardError> {
         None => run_interactive(&mut client, capture.clone())?,
     };
     client.set_sink(None);
-    if let (Some(path), Some(c)) = (&opts.capture, &capture) {
-        let c = c.lock().map(|c| c.clone()).unwrap_or_default();
-        finish_capture(&c, path, &port, &mut report);
+    match (&opts.capture, &capture, report.dump.take()) {
+        (Some(path), _, Some(dump)) => finish_record(dump, path, &port, &mut report),
+        (Some(path), Some(c), None) => {
+            let c = c.lock().map(|c| c.clone()).unwrap_or_default();
+            finish_capture(&c, path, &port, &mut report);
+        }
+        (None, _, Some(Err(e))) => report.capture_problem = Some(e),
+        _ => {}
     }
     if let Some(e) = emulator {
         e.quit(&mut client)?;
     }
     Ok(report)
+}
+
+/// Write the session's last dump as the capture.
+fn finish_record(
+    dump: Result<BoardRecord, String>,
+    path: &Path,
+    port: &str,
+    report: &mut SessionReport,
+) {
+    let rec = match dump {
+        Ok(r) => r,
+        Err(e) => {
+            report.capture_problem = Some(format!("the dump is not whole: {e}"));
+            return;
+        }
+    };
+    if let Err(e) = rec.write(path, &[("port", port.to_string())]) {
+        report.capture_problem = Some(format!("{}: {e}", path.display()));
+        return;
+    }
+    report.rows = rec.rows.len();
+    report.step_s = Some(dca_app::record::RECORD_DT_S);
+    eprintln!(
+        "the board's record: {} rows, step 0.001 s -> {}",
+        rec.rows.len(),
+        path.display()
+    );
 }
 
 fn finish_capture(c: &Capture, path: &Path, port: &str, report: &mut SessionReport) {
@@ -224,11 +283,7 @@ fn run_script(client: &mut ConsoleClient, steps: &[Step]) -> Result<SessionRepor
             Step::Send(line) => {
                 println!("> {line}");
                 let reply = client.command(line)?;
-                print!("{}", reply.text());
-                report.sent += 1;
-                if !reply.is_ok() {
-                    report.errors += 1;
-                }
+                report.reply(line, &reply);
             }
         }
     }
@@ -276,13 +331,7 @@ fn run_interactive(
         }
         let _ = rl.add_history_entry(line);
         match client.command(line) {
-            Ok(reply) => {
-                print!("{}", reply.text());
-                report.sent += 1;
-                if !reply.is_ok() {
-                    report.errors += 1;
-                }
-            }
+            Ok(reply) => report.reply(line, &reply),
             Err(e @ BoardError::NoReply { .. }) => {
                 eprintln!("{e}");
                 report.errors += 1;
