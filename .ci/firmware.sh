@@ -6,6 +6,7 @@
 # with bursts, fault injection over the HIL link, `host-sim hil --port --console`,
 # `host-sim console --script --capture` read by `host-sim gap`, the paper's four
 # closed-loop scenarios through the emulated firmware, bit-identical to the software loop,
+# the on-board record (`record`, `dump`), the live view (`console --scope`, in tmux),
 # and the manuals' commands for a board or QEMU, run against the emulated board.
 #
 # Assumes `rustup target add thumbv7em-none-eabihf` and python3 with pip (the count
@@ -100,7 +101,7 @@ cargo fw-qemu
 step "console driven as a user would (garbage, over-long lines, bursts, every reply checked)"
 timeout 300 python3 firmware/qemu/console_check.py "$QEMU_ELF"
 
-step "processor in the loop over ttys: faults zero the drive; hil --port/--console; console capture -> gap; the paper's four scenarios bit-identical to software"
+step "processor in the loop over ttys: faults zero the drive; hil --port/--console; console capture -> gap; the paper's four scenarios bit-identical to software; the on-board record (a HIL run's record equals the host's log; a dump captured -> gap); the scope in tmux"
 DCA_QEMU_ELF="$PWD/$QEMU_ELF" timeout 900 \
     cargo test -p host-sim --test hil_pil -- --ignored --nocapture --test-threads 1
 

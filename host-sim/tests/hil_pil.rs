@@ -550,3 +550,99 @@ fn a_console_dump_is_captured_as_a_1_ms_run_log() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A tmux session, ended when dropped (also when the test fails).
+struct Tmux(String);
+
+impl Tmux {
+    fn run(args: &[&str]) -> std::process::Output {
+        Command::new("tmux")
+            .args(args)
+            .output()
+            .expect("tmux (apt-get install tmux)")
+    }
+
+    /// The pane's text now.
+    fn screen(&self) -> String {
+        String::from_utf8_lossy(&Self::run(&["capture-pane", "-p", "-t", &self.0]).stdout)
+            .into_owned()
+    }
+
+    /// Wait (polling; at most `limit`) until the screen satisfies `ok`; the
+    /// last screen either way.
+    fn wait_for(&self, limit: Duration, ok: impl Fn(&str) -> bool) -> (bool, String) {
+        let until = std::time::Instant::now() + limit;
+        loop {
+            let s = self.screen();
+            if ok(&s) || std::time::Instant::now() > until {
+                return (ok(&s), s);
+            }
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
+    fn keys(&self, keys: &[&str]) {
+        let mut a = vec!["send-keys", "-t", self.0.as_str()];
+        a.extend_from_slice(keys);
+        assert!(Self::run(&a).status.success());
+    }
+}
+
+impl Drop for Tmux {
+    fn drop(&mut self) {
+        let _ = Self::run(&["kill-session", "-t", &self.0]);
+    }
+}
+
+/// The latest value a chart's legend shows for `name` (e.g. `xo 19.998`).
+fn legend(screen: &str, name: &str) -> Option<f64> {
+    let at = screen.find(&format!("{name} "))? + name.len() + 1;
+    let tail = &screen[at..];
+    let end = tail.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))?;
+    tail[..end].parse().ok()
+}
+
+/// `host-sim console --qemu --scope` in a real terminal (tmux): the charts
+/// fill from the stream, typed commands get their replies beside them, the
+/// piston's move shows on the position chart, Ctrl-D ends the session.
+/// The waits poll the screen; none is a timing assertion.
+#[test]
+#[ignore = "needs qemu-system-arm, tmux and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn the_scope_runs_in_a_terminal_beside_the_console() {
+    let bin = env!("CARGO_BIN_EXE_host-sim");
+    let name = format!("dca-scope-{}", std::process::id());
+    let cmd = format!(
+        "{bin} console --qemu --elf {} --scope; echo scope-ended $?; sleep 600",
+        elf().display()
+    );
+    let created = Tmux::run(&[
+        "new-session",
+        "-d",
+        "-s",
+        &name,
+        "-x",
+        "130",
+        "-y",
+        "42",
+        &cmd,
+    ]);
+    assert!(created.status.success(), "{created:?}");
+    let t = Tmux(name);
+    let long = Duration::from_secs(120);
+    let (ok, s) = t.wait_for(long, |s| {
+        s.contains("position, mm") && s.contains("dca>") && s.contains("> telemetry on 10")
+    });
+    assert!(ok, "the scope did not start:\n{s}");
+    t.keys(&["arm", "Enter"]);
+    let (ok, s) = t.wait_for(long, |s| s.contains("> arm"));
+    assert!(ok, "no reply to arm:\n{s}");
+    t.keys(&["goto 20", "Enter"]);
+    let (ok, s) = t.wait_for(long, |s| legend(s, "xo").is_some_and(|x| x > 15.0));
+    assert!(ok, "the position chart should show the move to 20 mm:\n{s}");
+    assert!(s.contains("> goto 20"), "{s}");
+    assert_eq!(legend(&s, "ref"), Some(20.0), "{s}");
+    t.keys(&["C-d"]);
+    let (ok, s) = t.wait_for(long, |s| s.contains("scope-ended"));
+    assert!(ok, "Ctrl-D should end the session:\n{s}");
+    assert!(s.contains("scope-ended 0"), "{s}");
+}

@@ -33,6 +33,11 @@ pub struct Args {
     /// Longest wait for a reply, s.
     #[arg(long, default_value_t = 10.0)]
     timeout: f64,
+    /// A live view in the terminal of what the board streams (reference and
+    /// position, pressures, force, command), the console beside it; turns the
+    /// stream on (a row every 10 ms) for the session.
+    #[arg(long, conflicts_with = "script")]
+    scope: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -59,6 +64,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         script,
         capture: a.capture,
         timeout: seconds(a.timeout, "--timeout")?,
+        scope: a.scope,
     })?;
     if let Some(p) = &report.capture_problem {
         anyhow::bail!("{p}");

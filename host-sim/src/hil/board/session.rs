@@ -119,6 +119,9 @@ pub struct SessionOptions {
     pub capture: Option<PathBuf>,
     /// Longest wait for a reply.
     pub timeout: Duration,
+    /// The live view ([`super::scope`]) instead of the plain interactive
+    /// console (not with a script).
+    pub scope: bool,
 }
 
 /// How a session ended.
@@ -139,23 +142,33 @@ pub struct SessionReport {
 }
 
 impl SessionReport {
-    /// Count one reply to `line`; a reply with binary frames (`dump`) is
-    /// read as the board's record. Shown as text without the frames.
+    /// Count one reply to `line` and show it (text; a dump's frames are
+    /// read, not shown).
     fn reply(&mut self, line: &str, reply: &Reply) {
         print!("{}", reply.text());
+        if let Some(note) = self.count(line, reply) {
+            eprintln!("{note}");
+        }
+    }
+
+    /// Count one reply to `line`; a reply to `dump` is read as the board's
+    /// record (see [`BoardRecord::from_reply`]). A note on the dump, if any.
+    pub fn count(&mut self, line: &str, reply: &Reply) -> Option<String> {
         self.sent += 1;
         if !reply.is_ok() {
             self.errors += 1;
         }
         let is_dump = line.split_ascii_whitespace().next() == Some("dump");
-        if is_dump && reply.is_ok() {
-            let r = BoardRecord::from_reply(reply).map_err(|e| e.to_string());
-            match &r {
-                Ok(rec) => eprintln!("record of {} rows (1 ms) received", rec.rows.len()),
-                Err(e) => eprintln!("{e}"),
-            }
-            self.dump = Some(r);
+        if !(is_dump && reply.is_ok()) {
+            return None;
         }
+        let r = BoardRecord::from_reply(reply).map_err(|e| e.to_string());
+        let note = match &r {
+            Ok(rec) => format!("record of {} rows (1 ms) received", rec.rows.len()),
+            Err(e) => e.clone(),
+        };
+        self.dump = Some(r);
+        Some(note)
     }
 }
 
@@ -200,6 +213,7 @@ pub fn run_session(opts: &SessionOptions) -> Result<SessionReport, BoardError> {
             client.set_sink(Some(sink(capture.clone(), |l| println!("{l}"))));
             run_script(&mut client, steps)?
         }
+        None if opts.scope => super::scope::run_scope(&mut client, capture.clone())?,
         None => run_interactive(&mut client, capture.clone())?,
     };
     client.set_sink(None);
