@@ -28,7 +28,6 @@ use ratatui::Frame;
 
 use super::capture::Capture;
 use super::console::{ConsoleClient, LineKind, Reply};
-use super::session::SessionReport;
 use super::BoardError;
 
 /// Seconds of the stream the charts show.
@@ -283,11 +282,14 @@ pub fn draw(f: &mut Frame, data: &ScopeData, console: &Console) {
 }
 
 /// Run the live view on `client` until Ctrl-D or Esc; the stream goes to
-/// the charts (and to `capture`, if given).
+/// the charts (and to `capture`, if given). Every reply is also given to
+/// `on_reply` with its line (the session's count); a note it returns is
+/// shown with the reply.
 pub fn run_scope(
     client: &mut ConsoleClient,
     capture: Option<Arc<Mutex<Capture>>>,
-) -> Result<SessionReport, BoardError> {
+    mut on_reply: impl FnMut(&str, &Reply) -> Option<String>,
+) -> Result<(), BoardError> {
     use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
     let data = Arc::new(Mutex::new(ScopeData::new()));
     let notices: Arc<Mutex<Vec<String>>> = Arc::default();
@@ -312,7 +314,6 @@ pub fn run_scope(
         port: "terminal".into(),
         error: e,
     };
-    let mut report = SessionReport::default();
     let mut console = Console::default();
     let mut history: Vec<String> = Vec::new();
     let mut back = 0usize;
@@ -339,13 +340,17 @@ pub fn run_scope(
                         Ok(reply) => {
                             console.show(&format!("> {line}"));
                             console.show(&reply.text());
-                            if let Some(note) = report.count(&line, &reply) {
+                            if let Some(note) = on_reply(&line, &reply) {
                                 console.show(&note);
                             }
                         }
                         Err(e @ BoardError::NoReply { .. }) => {
                             console.show(&e.to_string());
-                            report.errors += 1;
+                            let timed_out = Reply {
+                                last: format!("error: {e}"),
+                                ..Reply::default()
+                            };
+                            on_reply(&line, &timed_out);
                         }
                         Err(e) => return Err(e),
                     }
@@ -410,8 +415,7 @@ pub fn run_scope(
         let _ = to_board.send("telemetry off".into());
         drop(to_board);
         result
-    })?;
-    Ok(report)
+    })
 }
 
 #[cfg(test)]

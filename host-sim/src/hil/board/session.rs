@@ -213,7 +213,13 @@ pub fn run_session(opts: &SessionOptions) -> Result<SessionReport, BoardError> {
             client.set_sink(Some(sink(capture.clone(), |l| println!("{l}"))));
             run_script(&mut client, steps)?
         }
-        None if opts.scope => super::scope::run_scope(&mut client, capture.clone())?,
+        None if opts.scope => {
+            let mut report = SessionReport::default();
+            super::scope::run_scope(&mut client, capture.clone(), |line, reply| {
+                report.count(line, reply)
+            })?;
+            report
+        }
         None => run_interactive(&mut client, capture.clone())?,
     };
     client.set_sink(None);
