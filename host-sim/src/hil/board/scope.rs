@@ -281,6 +281,63 @@ pub fn draw(f: &mut Frame, data: &ScopeData, console: &Console) {
     f.set_cursor_position((x.min(input.right().saturating_sub(2)), input.y + 1));
 }
 
+/// What a key press asks of the live view.
+enum KeyAction {
+    /// End the view (Ctrl-D, Esc).
+    Quit,
+    /// Send this line to the board (Enter on a non-empty line while no reply is due).
+    Send(String),
+    /// The input line or the history position changed, or nothing did.
+    Edit,
+}
+
+/// Apply a key press to the input line and the history (`back`: how far up
+/// the history the input line is, 0 for a new line).
+fn on_key(
+    console: &mut Console,
+    history: &mut Vec<String>,
+    back: &mut usize,
+    k: ratatui::crossterm::event::KeyEvent,
+) -> KeyAction {
+    use ratatui::crossterm::event::{KeyCode, KeyModifiers};
+    let ctrl = k.modifiers.contains(KeyModifiers::CONTROL);
+    match k.code {
+        KeyCode::Esc => return KeyAction::Quit,
+        KeyCode::Char('d') if ctrl => return KeyAction::Quit,
+        KeyCode::Char('c') if ctrl => console.input.clear(),
+        KeyCode::Char(c) if !ctrl && console.input.len() < 80 => {
+            console.input.push(c);
+        }
+        KeyCode::Backspace => {
+            console.input.pop();
+        }
+        KeyCode::Up if *back < history.len() => {
+            *back += 1;
+            console.input = history[history.len() - *back].clone();
+        }
+        KeyCode::Down if *back > 0 => {
+            *back -= 1;
+            console.input = if *back == 0 {
+                String::new()
+            } else {
+                history[history.len() - *back].clone()
+            };
+        }
+        KeyCode::Enter => {
+            let line = console.input.trim().to_string();
+            console.input.clear();
+            *back = 0;
+            if !line.is_empty() && !console.busy {
+                history.push(line.clone());
+                console.busy = true;
+                return KeyAction::Send(line);
+            }
+        }
+        _ => {}
+    }
+    KeyAction::Edit
+}
+
 /// Run the live view on `client` until Ctrl-D or Esc; the stream goes to
 /// the charts (and to `capture`, if given). Every reply is also given to
 /// `on_reply` with its line (the session's count); a note it returns is
@@ -290,7 +347,7 @@ pub fn run_scope(
     capture: Option<Arc<Mutex<Capture>>>,
     mut on_reply: impl FnMut(&str, &Reply) -> Option<String>,
 ) -> Result<(), BoardError> {
-    use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+    use ratatui::crossterm::event::{self, Event, KeyEventKind};
     let data = Arc::new(Mutex::new(ScopeData::new()));
     let notices: Arc<Mutex<Vec<String>>> = Arc::default();
     {
@@ -373,40 +430,12 @@ pub fn run_scope(
                 if k.kind != KeyEventKind::Press {
                     continue;
                 }
-                let ctrl = k.modifiers.contains(KeyModifiers::CONTROL);
-                match k.code {
-                    KeyCode::Esc => return Ok(()),
-                    KeyCode::Char('d') if ctrl => return Ok(()),
-                    KeyCode::Char('c') if ctrl => console.input.clear(),
-                    KeyCode::Char(c) if !ctrl && console.input.len() < 80 => {
-                        console.input.push(c);
+                match on_key(&mut console, &mut history, &mut back, k) {
+                    KeyAction::Quit => return Ok(()),
+                    KeyAction::Send(line) => {
+                        let _ = to_board.send(line);
                     }
-                    KeyCode::Backspace => {
-                        console.input.pop();
-                    }
-                    KeyCode::Up if back < history.len() => {
-                        back += 1;
-                        console.input = history[history.len() - back].clone();
-                    }
-                    KeyCode::Down if back > 0 => {
-                        back -= 1;
-                        console.input = if back == 0 {
-                            String::new()
-                        } else {
-                            history[history.len() - back].clone()
-                        };
-                    }
-                    KeyCode::Enter => {
-                        let line = console.input.trim().to_string();
-                        console.input.clear();
-                        back = 0;
-                        if !line.is_empty() && !console.busy {
-                            history.push(line.clone());
-                            console.busy = true;
-                            let _ = to_board.send(line);
-                        }
-                    }
-                    _ => {}
+                    KeyAction::Edit => {}
                 }
             }
         })();
@@ -423,6 +452,45 @@ mod tests {
     use super::*;
     use ratatui::backend::TestBackend;
     use ratatui::Terminal;
+
+    #[test]
+    fn keys_edit_the_line_send_it_once_and_walk_the_history() {
+        use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+        let key = |c| KeyEvent::new(c, KeyModifiers::NONE);
+        let (mut console, mut history, mut back) = (Console::default(), Vec::new(), 0);
+        let mut press = |c: &mut Console, h: &mut Vec<String>, k| on_key(c, h, &mut back, k);
+        for ch in "arm".chars() {
+            assert!(matches!(
+                press(&mut console, &mut history, key(KeyCode::Char(ch))),
+                KeyAction::Edit
+            ));
+        }
+        match press(&mut console, &mut history, key(KeyCode::Enter)) {
+            KeyAction::Send(l) => assert_eq!(l, "arm"),
+            _ => panic!("Enter sends the line"),
+        }
+        assert!(console.busy && console.input.is_empty());
+        // While a reply is due, Enter sends nothing.
+        press(&mut console, &mut history, key(KeyCode::Char('x')));
+        assert!(matches!(
+            press(&mut console, &mut history, key(KeyCode::Enter)),
+            KeyAction::Edit
+        ));
+        console.busy = false;
+        press(&mut console, &mut history, key(KeyCode::Up));
+        assert_eq!(console.input, "arm");
+        press(&mut console, &mut history, key(KeyCode::Down));
+        assert_eq!(console.input, "");
+        let ctrl_d = KeyEvent::new(KeyCode::Char('d'), KeyModifiers::CONTROL);
+        assert!(matches!(
+            press(&mut console, &mut history, ctrl_d),
+            KeyAction::Quit
+        ));
+        assert!(matches!(
+            press(&mut console, &mut history, key(KeyCode::Esc)),
+            KeyAction::Quit
+        ));
+    }
 
     fn stream(d: &mut ScopeData, rows: usize) {
         d.line("# dca-log v1");
