@@ -134,29 +134,35 @@ impl CmpcParams {
         comp_ff: 0.5,
     };
 
-    /// Check the parameters against the design's bounds.
-    #[inline(never)]
+    /// Check the parameters against the design's bounds: the first check that
+    /// fails names the error.
     pub fn validate(&self) -> Result<(), DesignError> {
         let span: usize = self.blocks.iter().sum();
         let positive = |v: f64| v.is_finite() && v > 0.0;
         let share = |v: f64| (0.0..=1.0).contains(&v);
-        if !self.blocks.iter().all(|&l| (1..=MAX_HORIZON).contains(&l)) {
-            return Err(DesignError::ControlHorizon);
+        let checks = [
+            (
+                self.blocks.iter().all(|&l| (1..=MAX_HORIZON).contains(&l)),
+                DesignError::ControlHorizon,
+            ),
+            (
+                (span..=MAX_HORIZON).contains(&self.np),
+                DesignError::PredictionHorizon,
+            ),
+            (positive(self.ts_s), DesignError::SampleTime),
+            (positive(self.rw), DesignError::InputWeight),
+            (
+                positive(self.a_max_mps2)
+                    && share(self.load_ff)
+                    && share(self.preview)
+                    && share(self.comp_ff),
+                DesignError::Constraint,
+            ),
+        ];
+        match checks.iter().find(|(ok, _)| !ok) {
+            Some(&(_, e)) => Err(e),
+            None => Ok(()),
         }
-        if !(span..=MAX_HORIZON).contains(&self.np) {
-            return Err(DesignError::PredictionHorizon);
-        }
-        if !positive(self.ts_s) {
-            return Err(DesignError::SampleTime);
-        }
-        if !positive(self.rw) {
-            return Err(DesignError::InputWeight);
-        }
-        let shares = share(self.load_ff) && share(self.preview) && share(self.comp_ff);
-        if !(positive(self.a_max_mps2) && shares) {
-            return Err(DesignError::Constraint);
-        }
-        Ok(())
     }
 }
 
@@ -206,7 +212,6 @@ pub const PREVIEW_HORIZON_S: f64 = 0.05;
 pub const COMP_FF_TAU_S: f64 = 0.003;
 
 /// `a * b` for 4x4 row-major matrices (f64; +, * only, fixed order).
-#[inline(never)]
 fn row_times(row: &[f64; 4], a: &[[f64; 4]; 4]) -> [f64; 4] {
     let mut out = [0.0; 4];
     for (j, o) in out.iter_mut().enumerate() {
@@ -216,8 +221,7 @@ fn row_times(row: &[f64; 4], a: &[[f64; 4]; 4]) -> [f64; 4] {
 }
 
 /// One row of the horizon into the Hessian and the gradient coefficients:
-/// `h += 2 p p^T`, `coef[j] += 2 p_j feature` (one out-of-line copy: flash).
-#[inline(never)]
+/// `h += 2 p p^T`, `coef[j] += 2 p_j feature`.
 fn accumulate(
     h: &mut [[f64; N_MOVES]; N_MOVES],
     coef: &mut [[f64; 8]; N_MOVES],
@@ -239,7 +243,6 @@ fn dot4(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 }
 
 /// The augmented matrices `[[Ad, 0], [Cc Ad, 1]]` and `[b; Cc b]` (row-major).
-#[inline(never)]
 fn augment(ad: &Mat3, bd: &Vec3, bw: &Vec3) -> ([[f64; 4]; 4], [f64; 4], [f64; 4]) {
     let mut a = [[0.0; 4]; 4];
     for (i, row) in a.iter_mut().take(3).enumerate() {
@@ -260,7 +263,6 @@ fn augment(ad: &Mat3, bd: &Vec3, bw: &Vec3) -> ([[f64; 4]; 4], [f64; 4], [f64; 4
 /// elsewhere), or `None` when that block is not positive definite: Gauss-Jordan
 /// elimination without pivoting (a positive definite matrix needs none; a
 /// pivot that is not positive means the block is not).
-#[inline(never)]
 fn block_inverse(h: &[[f64; N_MOVES]; N_MOVES], mask: usize) -> Option<[[f64; N_MOVES]; N_MOVES]> {
     // The fixed moves' rows and columns are replaced by the identity: their
     // entries of the inverse come out as the identity and are zeroed at the end.
@@ -325,7 +327,6 @@ pub struct CmpcDesign {
 
 impl CmpcDesign {
     /// Design for the plant `plant` (f64, streaming over the horizon).
-    #[inline(never)]
     pub fn new(plant: &PlantParams, params: CmpcParams) -> Result<Self, DesignError> {
         params.validate()?;
         let model = PredictionModel::new(plant)?;

@@ -110,7 +110,8 @@ impl Preset {
 pub struct ControllerConfig {
     /// Which law runs.
     pub kind: ControllerKind,
-    /// Base tick period, s (1e-4 in the simulator, 1e-3 on the board).
+    /// Base (control) tick period, s: 1e-3 on the board and in host-sim's
+    /// commands; [`Self::preset`] gives 1e-4, a finer tick for studies.
     pub base_dt_s: f64,
     /// Physical parameters the prediction model is built from.
     pub plant: PlantParams,
@@ -135,7 +136,8 @@ pub struct ControllerConfig {
 }
 
 impl ControllerConfig {
-    /// A preset for one controller at the simulator's base tick (1e-4 s).
+    /// A preset for one controller, at a base tick of 1e-4 s (a study's tick
+    /// finer than the board's 1 ms: set `base_dt_s` to run as the board does).
     pub fn preset(preset: Preset, kind: ControllerKind) -> Self {
         let plant = PlantParams::NOMINAL;
         let mut cfg = Self {

@@ -26,47 +26,6 @@ pub type Mat4 = SMatrix<f64, 4, 4>;
 /// 4-vector.
 pub type Vec4 = SVector<f64, 4>;
 
-/// `sum_k x_k y_k` as nalgebra's matrix product accumulates it: the first
-/// product, then each next product plus the sum so far (0 for no terms).
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut terms = x.iter().zip(y).map(|(a, b)| a * b);
-    let first = terms.next().unwrap_or(0.0);
-    terms.fold(first, |sum, p| p + sum)
-}
-
-/// `out = a^T b` for column-major `a` with `inner` rows: one out-of-line copy
-/// for every size (flash), with the operations of nalgebra's
-/// `a.transpose() * b` in the same order (the same bits), without the copy.
-#[inline(never)]
-fn tr_mul_into(a: &[f64], inner: usize, b: &[f64], out: &mut [f64]) {
-    let mut out = out.iter_mut();
-    for b_col in b.chunks_exact(inner) {
-        for a_col in a.chunks_exact(inner) {
-            if let Some(o) = out.next() {
-                *o = dot(a_col, b_col);
-            }
-        }
-    }
-}
-
-/// `a.transpose() * b` through [`tr_mul_into`].
-fn tr_mul<const K: usize, const R: usize, const C: usize>(
-    a: &SMatrix<f64, K, R>,
-    b: &SMatrix<f64, K, C>,
-) -> SMatrix<f64, R, C> {
-    let mut out = SMatrix::<f64, R, C>::zeros();
-    tr_mul_into(a.as_slice(), K, b.as_slice(), out.as_mut_slice());
-    out
-}
-
-/// `a * b`, the same bits as nalgebra's (through [`tr_mul`] on `a^T`).
-fn mul<const R: usize, const K: usize, const C: usize>(
-    a: &SMatrix<f64, R, K>,
-    b: &SMatrix<f64, K, C>,
-) -> SMatrix<f64, R, C> {
-    tr_mul(&a.transpose(), b)
-}
-
 /// Why a design was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DesignError {
@@ -219,11 +178,11 @@ pub fn expm4(a: &Mat4) -> Mat4 {
     let mut term = Mat4::identity();
     let mut sum = Mat4::identity();
     for k in 1..=18 {
-        term = mul(&term, &x) / (k as f64);
+        term = term * x / (k as f64);
         sum += term;
     }
     for _ in 0..s {
-        sum = mul(&sum, &sum);
+        sum = sum * sum;
     }
     sum
 }
@@ -267,11 +226,11 @@ impl MpcDesign {
 
         let mut a = Mat4::zeros();
         a.fixed_view_mut::<3, 3>(0, 0).copy_from(&ad);
-        a.fixed_view_mut::<1, 3>(3, 0).copy_from(&mul(&cc, &ad));
+        a.fixed_view_mut::<1, 3>(3, 0).copy_from(&(cc * ad));
         a[(3, 3)] = 1.0;
         let mut b = Vec4::zeros();
         b.fixed_view_mut::<3, 1>(0, 0).copy_from(&bd);
-        b[3] = mul(&cc, &bd)[0];
+        b[3] = (cc * bd)[0];
         let c = SMatrix::<f64, 1, 4>::new(0.0, 0.0, 0.0, 1.0);
 
         let (np, nc) = (params.np, params.nc);
@@ -280,34 +239,33 @@ impl MpcDesign {
         let mut cab = [0.0f64; MAX_NP];
         let mut c_ai = c; // C A^i
         for (i, cab_i) in cab.iter_mut().take(np).enumerate() {
-            *cab_i = mul(&c_ai, &b)[0];
-            c_ai = mul(&c_ai, &a);
+            *cab_i = (c_ai * b)[0];
+            c_ai *= a;
             f.fixed_view_mut::<1, 4>(i, 0).copy_from(&c_ai);
         }
         let mut phi = SMatrix::<f64, MAX_NP, MAX_NC>::zeros();
         for i in 0..np {
             for j in 0..=i.min(nc - 1) {
-                // i - j < np <= MAX_NP: always present.
-                phi[(i, j)] = cab.get(i - j).copied().unwrap_or(0.0);
+                phi[(i, j)] = cab[i - j];
             }
         }
 
         // H = Phi^T Phi + r_w I on the nc x nc block; identity on the unused
         // diagonal keeps the padded matrix positive definite without coupling.
-        let mut h = tr_mul(&phi, &phi);
+        let mut h = phi.transpose() * phi;
         for i in 0..MAX_NC {
             h[(i, i)] += if i < nc { params.rw } else { 1.0 };
         }
         // Right-hand sides: Phi^T F (4 columns) and Phi^T 1 (the reference).
         let mut rhs = SMatrix::<f64, MAX_NC, 5>::zeros();
         rhs.fixed_view_mut::<MAX_NC, 4>(0, 0)
-            .copy_from(&tr_mul(&phi, &f));
+            .copy_from(&(phi.transpose() * f));
         let mut ones = SVector::<f64, MAX_NP>::zeros();
         for i in 0..np {
             ones[i] = 1.0;
         }
         rhs.fixed_view_mut::<MAX_NC, 1>(0, 4)
-            .copy_from(&tr_mul(&phi, &ones));
+            .copy_from(&(phi.transpose() * ones));
         let chol = nalgebra::Cholesky::new(h).ok_or(DesignError::Singular)?;
         let sol = chol.solve(&rhs);
         let kx = [sol[(0, 0)], sol[(0, 1)], sol[(0, 2)]];
@@ -351,43 +309,6 @@ mod tests {
         assert!(rel_close(m.ac[(2, 2)], -8.905841, 1e-6));
         assert!(rel_close(m.bc[1], 3.0240465e4, 1e-7));
         assert!(rel_close(m.bc[2], -1.6851522e5, 1e-7));
-    }
-
-    #[test]
-    fn products_are_bit_identical_to_nalgebra() {
-        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            // Mixed signs and magnitudes, some exact zeros.
-            let m = (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            if x.is_multiple_of(7) {
-                0.0
-            } else {
-                m * libm::exp2((x % 40) as f64 - 20.0)
-            }
-        };
-        for _ in 0..200 {
-            let a4 = Mat4::from_fn(|_, _| next());
-            let b4 = Mat4::from_fn(|_, _| next());
-            let same = |a: &[f64], b: &[f64]| {
-                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
-            };
-            assert!(same(mul(&a4, &b4).as_slice(), (a4 * b4).as_slice()));
-            let r = SMatrix::<f64, 1, 4>::from_fn(|_, _| next());
-            assert!(same(mul(&r, &a4).as_slice(), (r * a4).as_slice()));
-            let p = SMatrix::<f64, MAX_NP, MAX_NC>::from_fn(|_, _| next());
-            let f = SMatrix::<f64, MAX_NP, 4>::from_fn(|_, _| next());
-            assert!(same(
-                tr_mul(&p, &p).as_slice(),
-                (p.transpose() * p).as_slice()
-            ));
-            assert!(same(
-                tr_mul(&p, &f).as_slice(),
-                (p.transpose() * f).as_slice()
-            ));
-        }
     }
 
     #[test]

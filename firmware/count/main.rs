@@ -15,7 +15,8 @@
 #![no_main]
 
 use core::mem::MaybeUninit;
-use dca_app::settings::Settings;
+use dca_app::record::{PackedRow, Recorder};
+use dca_app::settings::{Calibration, Settings};
 use dca_core::controller::{Controller, ControllerKind, Preset, Sample};
 // The interrupt vectors cortex-m-rt's `link.x` expects from the device crate.
 use stm32f4 as _;
@@ -76,6 +77,56 @@ pub extern "C" fn count_periods(ctl: &Controller) -> u64 {
     n_h as u64 | (n_c as u64) << 32
 }
 
+/// Rows of the record the harness counts with (two blocks of 32, as the board's
+/// record spans main SRAM and the CCM RAM).
+pub const COUNT_RECORD_ROWS: usize = 64;
+
+/// `size_of::<Recorder>()`: the caller reserves this many bytes (8-aligned) for
+/// [`count_record_init`].
+#[allow(unsafe_code)]
+#[no_mangle]
+pub extern "C" fn count_recorder_size() -> u32 {
+    core::mem::size_of::<Recorder<'static>>() as u32
+}
+
+/// A recorder over `rows` (the caller's memory, [`COUNT_RECORD_ROWS`] rows) into
+/// `slot`, armed for all its rows with the factory calibration.
+#[allow(unsafe_code)]
+#[no_mangle]
+pub extern "C" fn count_record_init(
+    slot: &mut MaybeUninit<Recorder<'static>>,
+    rows: &'static mut [PackedRow; COUNT_RECORD_ROWS],
+) {
+    let (a, b) = rows.split_at_mut(COUNT_RECORD_ROWS / 2);
+    let mut r = Recorder::new(a, b);
+    // Cannot fail: 1 <= rows <= capacity.
+    let _ = r.arm(COUNT_RECORD_ROWS as u32, &Calibration::nominal(), 0);
+    slot.write(r);
+}
+
+/// The record's part of a control tick ([`Recorder::push`], as the control task
+/// calls it with the tick's reference, command and sample), the recorder
+/// re-armed first when full so that every call records a row.
+#[allow(unsafe_code)]
+#[no_mangle]
+pub extern "C" fn count_record_push(rec: &mut Recorder<'static>, xo_m: f32, ref_m: f32) {
+    let sample = Sample {
+        xo_m,
+        xi_m: xo_m,
+        p1_pa: 2.0e6,
+        p2_pa: 1.0e6,
+        ft_n: -500.0,
+    };
+    rec.push(true, ref_m, ref_m - xo_m, &sample, 0);
+}
+
+/// Re-arm the recorder (between counted calls, when it is full).
+#[allow(unsafe_code)]
+#[no_mangle]
+pub extern "C" fn count_record_rearm(rec: &mut Recorder<'static>) {
+    let _ = rec.arm(COUNT_RECORD_ROWS as u32, &Calibration::nominal(), 0);
+}
+
 /// Never run: it only keeps the entry points in the image (a linked executable exports
 /// nothing, so the linker would drop them otherwise).
 #[cortex_m_rt::entry]
@@ -84,6 +135,16 @@ fn main() -> ! {
     core::hint::black_box(count_init as extern "C" fn(u32, &mut MaybeUninit<Controller>) -> u32);
     core::hint::black_box(count_step as extern "C" fn(&mut Controller, f32, f32) -> f32);
     core::hint::black_box(count_periods as extern "C" fn(&Controller) -> u64);
+    core::hint::black_box(count_recorder_size as extern "C" fn() -> u32);
+    core::hint::black_box(
+        count_record_init
+            as extern "C" fn(
+                &mut MaybeUninit<Recorder<'static>>,
+                &'static mut [PackedRow; COUNT_RECORD_ROWS],
+            ),
+    );
+    core::hint::black_box(count_record_push as extern "C" fn(&mut Recorder<'static>, f32, f32));
+    core::hint::black_box(count_record_rearm as extern "C" fn(&mut Recorder<'static>));
     loop {
         cortex_m::asm::wfi();
     }

@@ -6,6 +6,7 @@
 
 use dca_app::console::{LogRow, Status, Target};
 use dca_app::frame::{LinkError, LinkMonitor, SampleFrame};
+use dca_app::record::{PackedRow, RecordError, RecordInfo, Recorder};
 use dca_app::settings::{Calibration, DriveScale, Settings, IMAGE_LEN};
 use dca_app::supervisor::{ControlLoop, Faults, Refused};
 use dca_core::controller::{Controller, Sample};
@@ -145,11 +146,18 @@ pub struct Ctl {
     pub last_v_mps: f32,
     /// HIL reply frames that could not be queued.
     pub tx_dropped: u32,
+    /// The on-board record (its rows in main SRAM and the CCM RAM).
+    pub record: Recorder<'static>,
 }
 
 impl Ctl {
-    /// Idle, local source, nothing pending.
-    pub fn new(controller: Controller, settings: &Settings, dt_s: f64) -> Self {
+    /// Idle, local source, nothing pending, the record off.
+    pub fn new(
+        controller: Controller,
+        settings: &Settings,
+        dt_s: f64,
+        record: Recorder<'static>,
+    ) -> Self {
         Self {
             lp: ControlLoop::new(controller, settings.limits, dt_s),
             run: RunConfig::from_settings(settings),
@@ -162,6 +170,7 @@ impl Ctl {
             alive: false,
             last_v_mps: 0.0,
             tx_dropped: 0,
+            record,
         }
     }
 
@@ -338,6 +347,32 @@ where
 
     fn echo(&mut self, on: bool) {
         self.input.lock(|i| i.set_echo(on));
+    }
+
+    fn record_arm(
+        &mut self,
+        rows: u32,
+        cal: &Calibration,
+        controller: u8,
+    ) -> Result<(), RecordError> {
+        self.ctl.lock(|c| c.record.arm(rows, cal, controller))
+    }
+
+    fn record_off(&mut self) {
+        self.ctl.lock(|c| c.record.off());
+    }
+
+    fn record_end(&mut self) {
+        self.ctl.lock(|c| c.record.end());
+    }
+
+    fn record_info(&mut self) -> RecordInfo {
+        self.ctl.lock(|c| c.record.info())
+    }
+
+    /// One short lock per call (a dump asks for three rows at a time).
+    fn record_rows(&mut self, first: u32, out: &mut [PackedRow]) -> usize {
+        self.ctl.lock(|c| c.record.rows(first, out))
     }
 }
 

@@ -101,16 +101,27 @@ pub struct FrameBytes {
 pub struct ConsoleOut<'a>(pub &'a mut hardware::ConsoleTx);
 
 impl core::fmt::Write for ConsoleOut<'_> {
-    #[inline(never)]
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        use embedded_hal_nb::serial::Write as _;
-        for b in s.bytes() {
-            // The HAL's USART write cannot fail other than by `WouldBlock`.
-            let _ = nb::block!(self.0.write(b));
-        }
+        dca_app::console::Output::write_bytes(self, s.as_bytes());
         Ok(())
     }
 }
+
+impl dca_app::console::Output for ConsoleOut<'_> {
+    #[inline(never)]
+    fn write_bytes(&mut self, bytes: &[u8]) {
+        use embedded_hal_nb::serial::Write as _;
+        for &b in bytes {
+            // The HAL's USART write cannot fail other than by `WouldBlock`.
+            let _ = nb::block!(self.0.write(b));
+        }
+    }
+}
+
+/// Rows of the record's block in main SRAM (96 KiB).
+pub const RECORD_SRAM_ROWS: usize = 6144;
+/// Rows of the record's block in the CCM RAM (64 KiB, all of it).
+pub const RECORD_CCM_ROWS: usize = 4096;
 
 /// The board's local sensor source: ADC scan and encoder.
 #[cfg(not(feature = "qemu"))]
@@ -156,15 +167,17 @@ impl SensorSource for qemu::SimSensors {
 mod app {
     use super::{
         hardware, machine, ConsoleInput, ConsoleOut, FrameBytes, RowEvent, SensorSource as _,
-        Sensors, DEADLINE_US, TELEMETRY_ROWS, UPTIME_MS,
+        Sensors, DEADLINE_US, RECORD_CCM_ROWS, RECORD_SRAM_ROWS, TELEMETRY_ROWS, UPTIME_MS,
     };
     use core::fmt::Write as _;
     use dca_app::console::{
         write_log_header, write_log_row, Console, Received, ECHO_BYTES, MAX_LINE,
     };
     use dca_app::frame::{self, CommandFrame, FrameReader, ReadEvent, MAX_FRAME_LEN};
+    use dca_app::record::{PackedRow, Recorder, ROW_BYTES};
     use dca_app::settings::{Settings, BOARD_DT_S, IMAGE_LEN};
     use dca_app::supervisor::Faults;
+    use dca_app::supervisor::State;
     use dca_app::text::Buf;
     use embedded_hal_nb::serial::{Read as _, Write as _};
     use hardware::{
@@ -222,6 +235,15 @@ mod app {
         buf_a: [u16; 4] = [0; 4],
         buf_b: [u16; 4] = [0; 4],
         rows: Queue<RowEvent, { TELEMETRY_ROWS + 1 }> = Queue::new(),
+        // The record's blocks, placed by memory.x (NOLOAD sections, which the
+        // start-up code leaves alone: `init` zeroes them, 0.2 ms once). The
+        // placement is the only reason for the `unsafe_code` allowances.
+        #[allow(unsafe_code)]
+        #[link_section = ".record_sram"]
+        record_sram: [PackedRow; RECORD_SRAM_ROWS] = [[0; ROW_BYTES]; RECORD_SRAM_ROWS],
+        #[allow(unsafe_code)]
+        #[link_section = ".record_ccm"]
+        record_ccm: [PackedRow; RECORD_CCM_ROWS] = [[0; ROW_BYTES]; RECORD_CCM_ROWS],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut devices = hardware::setup(cx.core, cx.device, (cx.local.buf_a, cx.local.buf_b));
@@ -255,7 +277,10 @@ mod app {
             n_c
         );
 
-        let mut ctl = Ctl::new(controller, &settings, BOARD_DT_S);
+        cx.local.record_sram.fill([0; ROW_BYTES]);
+        cx.local.record_ccm.fill([0; ROW_BYTES]);
+        let record = Recorder::new(cx.local.record_sram, cx.local.record_ccm);
+        let mut ctl = Ctl::new(controller, &settings, BOARD_DT_S, record);
         if devices.watchdog_reset {
             trip(&mut ctl, Faults::WATCHDOG);
         }
@@ -321,7 +346,8 @@ mod app {
     /// the HIL reply frame (written here, blocking: at most 18 bytes, about
     /// 0.20 ms at 921600 baud on the board, within the deadline; a separate
     /// sender task could still be finishing the previous frame when the host's
-    /// next one arrives), a telemetry row every `decimation` ticks.
+    /// next one arrives), the on-board record's row (`Recorder::push`, at
+    /// most 149 instructions), a telemetry row every `decimation` ticks.
     #[task(binds = EXTI0, priority = 4, shared = [ctl, clock, sensors], local = [drive, rows_in, control_bell, hil_tx])]
     fn control(cx: control::Context) {
         let drive = cx.local.drive;
@@ -380,6 +406,13 @@ mod app {
                     Err(_) => c.tx_dropped = c.tx_dropped.saturating_add(1),
                 }
             }
+            c.record.push(
+                sup.state() == State::Running,
+                c.lp.last_ref_m(),
+                v,
+                &sample,
+                sup.faults().0,
+            );
             let row = c.telemetry.tick(
                 c.lp.last_ref_m(),
                 v,

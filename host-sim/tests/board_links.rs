@@ -153,3 +153,34 @@ fn the_host_resynchronises_on_noise_and_matches_the_software_loop() {
     assert_eq!(ticks, 6000);
     assert_eq!(trace.first_difference(&soft), None);
 }
+
+/// `hil --qemu` and `console --qemu` without QEMU on the path: the error comes
+/// at once, before any firmware build (a build would need `cargo`, which is
+/// not reachable here either), and says how to install QEMU.
+#[test]
+fn a_missing_qemu_is_said_before_any_build() {
+    let empty = std::env::temp_dir().join(format!("dca-no-qemu-{}", std::process::id()));
+    std::fs::create_dir_all(&empty).unwrap();
+    for args in [
+        &["hil", "--qemu", "--scenario", "step", "--controller", "pid"][..],
+        &["console", "--qemu"][..],
+    ] {
+        let t0 = Instant::now();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(args)
+            .env("PATH", &empty)
+            .env("CARGO", empty.join("no-cargo"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains("qemu-system-arm not found on PATH")
+                && err.contains("apt-get install qemu-system-arm"),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("building"), "{args:?}: {err}");
+        assert!(t0.elapsed() < Duration::from_secs(5), "{args:?}");
+    }
+    std::fs::remove_dir_all(&empty).unwrap();
+}

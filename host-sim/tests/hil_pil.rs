@@ -18,18 +18,19 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use host_sim::hil::board::console::{ConsoleClient, CONSOLE_BAUD};
 use host_sim::hil::board::port::SerialLink;
 use host_sim::hil::board::qemu::{Emulator, QemuOptions};
-use host_sim::hil::{run_hil_qemu, run_software, HIL_BAUD};
+use host_sim::hil::{run_hil_qemu, run_hil_qemu_with, run_software, HIL_BAUD};
 use host_sim::io::runlog::RunLog;
 use host_sim::model::plant::Plant;
 use host_sim::model::scenario::Scenario;
 use host_sim::model::sensors::SensorMode;
 use host_sim::sim::RunSpec;
 
-/// The firmware's link timeout for runs that test bit identity, not timing:
+/// The firmware's link timeout for runs over the emulated board's ports that
+/// test bit identity, not timing (`run_hil_qemu` sets the same by itself):
 /// the emulated board keeps time by the host's clock, and on a loaded machine
-/// a round trip can take far longer than the factory 100 ms (up to 0.9 s
+/// a round trip can take far longer than the factory 100 ms (up to 0.94 s
 /// measured). The factory timeout itself is tested by the fault injection.
-const LINK_TIMEOUT_MS: u32 = 5000;
+const LINK_TIMEOUT_MS: u32 = host_sim::hil::EMULATED_LINK_TIMEOUT_MS;
 
 fn elf() -> PathBuf {
     std::env::var_os("DCA_QEMU_ELF")
@@ -90,8 +91,9 @@ fn bit_identical(s: &RunSpec, name: &str) {
     let opts = QemuOptions::default();
     {
         let t0 = std::time::Instant::now();
-        let emulated = run_hil_qemu(s, &elf(), &opts, Some(LINK_TIMEOUT_MS))
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        // No link timeout given: `run_hil_qemu` sets the emulated board's.
+        let emulated =
+            run_hil_qemu(s, &elf(), &opts, None).unwrap_or_else(|e| panic!("{name}: {e}"));
         let soft = run_software(s).unwrap();
         let n = emulated.rows.len();
         assert_eq!(n, soft.rows.len());
@@ -347,6 +349,22 @@ fn hil_over_the_serial_ports_matches_the_simulated_run() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The README's processor-in-the-loop run, as written there (the ELF given, so
+/// that the build CI made is the one run).
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn the_documented_pil_run_passes() {
+    let out = host_sim()
+        .args(["hil", "--qemu", "--elf"])
+        .arg(elf())
+        .args(["--scenario", "step", "--controller", "pid", "--compare"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("bit-identical"), "{err}");
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
 fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
@@ -403,4 +421,228 @@ fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
         String::from_utf8_lossy(&out.stderr)
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The board's own record of a HIL run (`record 10` before, `dump` after,
+/// 10 000 rows of 1 ms: a 10 s record dumped and read back whole) equals the
+/// host's log of the same run column by column within the record's stated
+/// resolution (dca_app::record): the sensor columns are the codes the board
+/// read (the host models the board's ADCs and encoder: realistic sensors),
+/// the reference and command within half of 2^-23, the faults exact.
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn a_record_made_during_a_hil_run_equals_the_hosts_log() {
+    use dca_app::record::{REF_LSB_M, VCMD_LSB_MPS};
+    use dca_app::settings::Calibration;
+    let mut s = spec_with("stepload", ControllerKind::CmpcEso, Preset::Limit);
+    s.sensors = SensorMode::Realistic;
+    s.seed = 7;
+    let (trace, rec) = run_hil_qemu_with(&s, &elf(), &QemuOptions::default(), None, true)
+        .expect("HIL run with the record");
+    let rec = rec.expect("a record");
+    assert_eq!(trace.rows.len(), 10_000);
+    assert_eq!(rec.rows.len(), trace.rows.len(), "a 10 s record, whole");
+    assert_eq!(rec.controller(), Some(ControllerKind::CmpcEso));
+    let cal = Calibration::nominal();
+    for (i, (h, r)) in trace.rows.iter().zip(&rec.rows).enumerate() {
+        let at = format!("tick {i}");
+        assert!(
+            (r.ref_m - f64::from(h.ref_m)).abs() <= REF_LSB_M / 2.0,
+            "{at}: ref {} vs {}",
+            r.ref_m,
+            h.ref_m
+        );
+        assert!(
+            (r.v_cmd_mps - f64::from(h.reply.v_cmd_mps)).abs() <= VCMD_LSB_MPS / 2.0,
+            "{at}: command {} vs {}",
+            r.v_cmd_mps,
+            h.reply.v_cmd_mps
+        );
+        assert_eq!(r.faults, h.reply.faults, "{at}");
+        // The same code as the board read, the value within f32 rounding
+        // (the board computes offset + gain * code in f32, the host's sensor
+        // model in f64).
+        for (name, got, sent, ch) in [
+            ("xo", r.sample.xo_m, h.sample.xo_m, cal.lvdt),
+            ("p1", r.sample.p1_pa, h.sample.p1_pa, cal.p1),
+            ("p2", r.sample.p2_pa, h.sample.p2_pa, cal.p2),
+            ("ft", r.sample.ft_n, h.sample.ft_n, cal.force),
+            ("xi", r.sample.xi_m, h.sample.xi_m, cal.encoder),
+        ] {
+            let code =
+                |v: f32| ((f64::from(v) - f64::from(ch.offset)) / f64::from(ch.gain)).round();
+            assert_eq!(
+                code(got),
+                code(sent),
+                "{at}: {name} recorded {got}, read {sent}"
+            );
+            assert!(
+                (got - sent).abs() <= 4.0 * f32::EPSILON * sent.abs().max(ch.offset.abs()),
+                "{at}: {name} recorded {got}, read {sent}"
+            );
+        }
+    }
+    // The command column is a run's: it moves.
+    assert!(rec.rows.iter().any(|r| r.v_cmd_mps.abs() > 1e-3));
+}
+
+/// `host-sim console --script ... --capture` with `record` and `dump`: the
+/// capture is the board's record, a 1 ms run log that `host-sim gap` reads.
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn a_console_dump_is_captured_as_a_1_ms_run_log() {
+    let dir = std::env::temp_dir().join(format!("dca-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let script = dir.join("record.txt");
+    std::fs::write(
+        &script,
+        "record 3\narm\ngoto 20\nsleep 2\ngoto 5\nsleep 2\ndump\ndisarm\n",
+    )
+    .unwrap();
+    let out_csv = dir.join("record.csv");
+    let out = host_sim()
+        .args(["console", "--qemu", "--elf"])
+        .arg(elf())
+        .arg("--script")
+        .arg(&script)
+        .arg("--capture")
+        .arg(&out_csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "{err}\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let log = RunLog::read(&out_csv).unwrap();
+    // The emulator's clock may lag the script's sleeps on a loaded machine:
+    // `dump` then ends the record early; every row it has is there.
+    assert!(log.len() > 500 && log.len() <= 3000, "{} rows", log.len());
+    assert!((log.dt_s() - 0.001).abs() < 1e-12, "step {}", log.dt_s());
+    let xi = log.channel("xi_m").unwrap();
+    let top = xi.iter().cloned().fold(f64::MIN, f64::max);
+    assert!(top > 0.01, "the piston should move towards 20 mm: {top}");
+    let text = std::fs::read_to_string(&out_csv).unwrap();
+    assert!(text.contains("# source=dca-firmware record"));
+    // `gap` reads it as it is (a simulated run of the nominal rig as the check).
+    let check = dir.join("check.csv");
+    let out = host_sim()
+        .args(["run", "--scenario", "step", "--controller", "mpc-eso"])
+        .args(["--sensors", "realistic", "--log"])
+        .arg(&check)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let out = host_sim()
+        .args(["gap", "--fit"])
+        .arg(&out_csv)
+        .arg("--check")
+        .arg(&check)
+        .arg("--json")
+        .arg(dir.join("gap.json"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "gap: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A tmux session, ended when dropped (also when the test fails).
+struct Tmux(String);
+
+impl Tmux {
+    fn run(args: &[&str]) -> std::process::Output {
+        Command::new("tmux")
+            .args(args)
+            .output()
+            .expect("tmux (apt-get install tmux)")
+    }
+
+    /// The pane's text now.
+    fn screen(&self) -> String {
+        String::from_utf8_lossy(&Self::run(&["capture-pane", "-p", "-t", &self.0]).stdout)
+            .into_owned()
+    }
+
+    /// Wait (polling; at most `limit`) until the screen satisfies `ok`; the
+    /// last screen either way.
+    fn wait_for(&self, limit: Duration, ok: impl Fn(&str) -> bool) -> (bool, String) {
+        let until = std::time::Instant::now() + limit;
+        loop {
+            let s = self.screen();
+            if ok(&s) || std::time::Instant::now() > until {
+                return (ok(&s), s);
+            }
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
+    fn keys(&self, keys: &[&str]) {
+        let mut a = vec!["send-keys", "-t", self.0.as_str()];
+        a.extend_from_slice(keys);
+        assert!(Self::run(&a).status.success());
+    }
+}
+
+impl Drop for Tmux {
+    fn drop(&mut self) {
+        let _ = Self::run(&["kill-session", "-t", &self.0]);
+    }
+}
+
+/// The latest value a chart's legend shows for `name` (e.g. `xo 19.998`).
+fn legend(screen: &str, name: &str) -> Option<f64> {
+    let at = screen.find(&format!("{name} "))? + name.len() + 1;
+    let tail = &screen[at..];
+    let end = tail.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))?;
+    tail[..end].parse().ok()
+}
+
+/// `host-sim console --qemu --scope` in a real terminal (tmux): the charts
+/// fill from the stream, typed commands get their replies beside them, the
+/// piston's move shows on the position chart, Ctrl-D ends the session.
+/// The waits poll the screen; none is a timing assertion.
+#[test]
+#[ignore = "needs qemu-system-arm, tmux and `cargo fw-qemu`; run by .ci/firmware.sh"]
+fn the_scope_runs_in_a_terminal_beside_the_console() {
+    let bin = env!("CARGO_BIN_EXE_host-sim");
+    let name = format!("dca-scope-{}", std::process::id());
+    let cmd = format!(
+        "{bin} console --qemu --elf {} --scope; echo scope-ended $?; sleep 600",
+        elf().display()
+    );
+    let created = Tmux::run(&[
+        "new-session",
+        "-d",
+        "-s",
+        &name,
+        "-x",
+        "130",
+        "-y",
+        "42",
+        &cmd,
+    ]);
+    assert!(created.status.success(), "{created:?}");
+    let t = Tmux(name);
+    let long = Duration::from_secs(120);
+    let (ok, s) = t.wait_for(long, |s| {
+        s.contains("position, mm") && s.contains("dca>") && s.contains("> telemetry on 10")
+    });
+    assert!(ok, "the scope did not start:\n{s}");
+    t.keys(&["arm", "Enter"]);
+    let (ok, s) = t.wait_for(long, |s| s.contains("> arm"));
+    assert!(ok, "no reply to arm:\n{s}");
+    t.keys(&["goto 20", "Enter"]);
+    let (ok, s) = t.wait_for(long, |s| legend(s, "xo").is_some_and(|x| x > 15.0));
+    assert!(ok, "the position chart should show the move to 20 mm:\n{s}");
+    assert!(s.contains("> goto 20"), "{s}");
+    assert_eq!(legend(&s, "ref"), Some(20.0), "{s}");
+    t.keys(&["C-d"]);
+    let (ok, s) = t.wait_for(long, |s| s.contains("scope-ended"));
+    assert!(ok, "Ctrl-D should end the session:\n{s}");
+    assert!(s.contains("scope-ended 0"), "{s}");
 }

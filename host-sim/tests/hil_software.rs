@@ -100,3 +100,68 @@ fn a_design_model_off_nominal_is_refused() {
         .to_string();
     assert!(e.contains("design model"), "{e}");
 }
+
+/// `host-sim run` predicts the board: the simulator's loop, resolved as the
+/// command line resolves it (the board's 1 ms control tick by default), gives
+/// the drive commands of the HIL loop (the board's `ControlLoop`, which
+/// `hil --compare` checks bit for bit against the emulated firmware) to the
+/// bit, for every controller and preset, with ideal and realistic sensors.
+#[test]
+fn run_gives_the_commands_of_the_hil_loop_for_every_controller_and_preset() {
+    use host_sim::sim::request::{resolve, RunRequest};
+    for kind in ControllerKind::ALL {
+        for preset in Preset::ALL {
+            for sensors in ["ideal", "realistic"] {
+                let req = RunRequest {
+                    scenario: "stepload".into(),
+                    controller: Some(kind.name().into()),
+                    config: Some(preset.name().into()),
+                    sensors: Some(sensors.into()),
+                    seed: Some(3),
+                    ..RunRequest::default()
+                };
+                let spec = resolve(&req).unwrap();
+                assert_eq!(spec.controller.base_dt_s, 1e-3);
+                let sim = host_sim::sim::run(&spec).unwrap();
+                let hil = run_software(&spec).unwrap();
+                let what = format!("{} / {} / {sensors}", kind.name(), preset.name());
+                assert_eq!(sim.rows.len(), hil.rows.len(), "{what}");
+                for (s, h) in sim.rows.iter().zip(&hil.rows) {
+                    assert_eq!(
+                        s.vcmd_mps.to_bits(),
+                        (h.reply.v_cmd_mps as f64).to_bits(),
+                        "{what}: t = {} s",
+                        s.t_s
+                    );
+                    assert_eq!(s.meas.to_sample(), h.sample, "{what}: t = {} s", s.t_s);
+                }
+            }
+        }
+    }
+}
+
+/// A finer control tick is a study's explicit choice and changes the run;
+/// a tick that is not a whole number of plant steps is refused.
+#[test]
+fn a_finer_control_tick_is_an_option() {
+    use host_sim::sim::request::{resolve, RunRequest};
+    use host_sim::sim::SimError;
+    let req = |tick: Option<f64>| RunRequest {
+        scenario: "stepload".into(),
+        controller: Some("cmpc-eso".into()),
+        config: Some("limit".into()),
+        control_tick_s: tick,
+        ..RunRequest::default()
+    };
+    let board = host_sim::sim::run(&resolve(&req(None)).unwrap()).unwrap();
+    let fine = host_sim::sim::run(&resolve(&req(Some(1e-4))).unwrap()).unwrap();
+    assert_eq!(board.rows.len(), fine.rows.len());
+    assert!(board
+        .rows
+        .iter()
+        .zip(&fine.rows)
+        .any(|(a, b)| a.vcmd_mps != b.vcmd_mps));
+    let e = host_sim::sim::run(&resolve(&req(Some(1.5e-4))).unwrap()).unwrap_err();
+    assert!(matches!(e, SimError::Tick { .. }), "{e}");
+    assert!(e.to_string().contains("control tick"), "{e}");
+}

@@ -305,9 +305,9 @@ fn mutate(rng: &mut Rng, data: &mut Vec<u8>, pool: &[Vec<u8>]) {
 
 /// A number near an edge of `[lo, hi]`, as text the console accepts or
 /// nearly accepts.
-fn edge_text(rng: &mut Rng, m: i8, e: i8, lo: f64, hi: f64) -> String {
+fn edge_text(rng: &mut Rng, bound: f64, lo: f64, hi: f64) -> String {
     match rng.below(8) {
-        0 => format!("{m}e{e}"),
+        0 => format!("{bound:e}"),
         1 => format!("{}", lo),
         2 => format!("{}", hi),
         3 => format!("{:.6e}", (hi as f32) as f64),
@@ -330,11 +330,11 @@ fn console_case(rng: &mut Rng) -> Vec<u8> {
             0..=4 => {
                 let p = rng.pick(&PARAMS);
                 let (b, lo, hi) = if rng.chance(2) {
-                    (p.min, p.min.value(), p.max.value())
+                    (p.min, p.min, p.max)
                 } else {
-                    (p.max, p.min.value(), p.max.value())
+                    (p.max, p.min, p.max)
                 };
-                format!("set {} {}", p.name, edge_text(rng, b.0, b.1, lo, hi))
+                format!("set {} {}", p.name, edge_text(rng, b, lo, hi))
             }
             5 => "store".into(),
             6 => "load".into(),

@@ -155,7 +155,7 @@ pub fn decode<'a, T: Deserialize<'a> + Serialize>(frame: &'a mut [u8]) -> Result
     if frame.contains(&0) {
         return Err(FrameError::Cobs);
     }
-    let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
+    let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
     if n < 3 {
         return Err(FrameError::Payload);
     }
@@ -172,36 +172,6 @@ pub fn decode<'a, T: Deserialize<'a> + Serialize>(frame: &'a mut [u8]) -> Result
         Ok(c) if *c == *payload => Ok(msg),
         _ => Err(FrameError::Payload),
     }
-}
-
-/// `cobs::decode_in_place` (0.3) without its panic paths, which would link the
-/// formatting machinery into the firmware: the same decoded bytes and length,
-/// `None` where it returns an error.
-fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
-    if buf.is_empty() {
-        return None;
-    }
-    // Stop at the first terminator, if any.
-    let src_end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
-    let (mut src, mut dst) = (0usize, 0usize);
-    while src < src_end {
-        let code = *buf.get(src)?;
-        if src + code as usize > src_end && code != 1 {
-            return None;
-        }
-        src += 1;
-        for _ in 1..code {
-            let b = *buf.get(src)?;
-            *buf.get_mut(dst)? = b;
-            src += 1;
-            dst += 1;
-        }
-        if code != 0xFF && src < src_end {
-            *buf.get_mut(dst)? = 0;
-            dst += 1;
-        }
-    }
-    Some(dst)
 }
 
 /// Collects bytes from a stream into frames at the `0x00` delimiters.
@@ -448,51 +418,5 @@ impl LinkMonitor {
     /// Restart the timeout without a frame (e.g. while frames are not expected).
     pub fn idle(&mut self) {
         self.idle_ticks = 0;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cobs_decode_matches_the_cobs_crate() {
-        let mut x: u32 = 0x1234_5678;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        };
-        for case in 0..20_000 {
-            let len = (next() % 70) as usize;
-            let mut a = [0u8; 70];
-            for v in a.iter_mut().take(len) {
-                // Mostly small codes and few zeros, so that many frames are valid.
-                *v = match next() % 8 {
-                    0 => 0,
-                    1 => 0xff,
-                    2..=4 => (next() % 6) as u8 + 1,
-                    _ => next() as u8,
-                };
-            }
-            if case % 3 == 0 {
-                // A valid encoding of random bytes.
-                let mut raw = [0u8; 40];
-                for v in raw.iter_mut() {
-                    *v = if next() % 4 == 0 { 0 } else { next() as u8 };
-                }
-                let m = cobs::try_encode(&raw[..len.min(40)], &mut a).unwrap();
-                let (mut p, mut q) = (a, a);
-                let want = cobs::decode_in_place(&mut p[..m]).ok();
-                assert_eq!(cobs_decode_in_place(&mut q[..m]), want);
-                assert_eq!(p, q);
-                continue;
-            }
-            let (mut p, mut q) = (a, a);
-            let want = cobs::decode_in_place(&mut p[..len]).ok();
-            assert_eq!(cobs_decode_in_place(&mut q[..len]), want, "{:?}", &a[..len]);
-            assert_eq!(p, q);
-        }
     }
 }

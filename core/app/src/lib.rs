@@ -12,6 +12,7 @@
 //! * [`console`]: the serial console (its receive path, the line editor, the
 //!   command set) without I/O;
 //! * [`frame`]: the HIL link's frames and the link supervision;
+//! * [`record`]: the on-board record of every control tick and its dump;
 //! * [`text`]: decimal numbers in and out without `core::fmt`'s float code.
 //!
 //! Layers: this crate depends on `dca-core`, never the reverse. It is
@@ -21,6 +22,7 @@
 
 pub mod console;
 pub mod frame;
+pub mod record;
 pub mod settings;
 pub mod supervisor;
 pub mod text;

@@ -147,38 +147,14 @@ pub enum ParamKind {
     Bool,
 }
 
-/// A range bound `m * 10^e`, two bytes in flash instead of eight.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Bound(pub i8, pub i8);
-
-impl Bound {
-    /// The value, correctly rounded (exact powers of ten up to 10^22).
-    pub fn value(self) -> f64 {
-        let m = self.0 as f64;
-        let e = self.1 as i32;
-        let p = |k: i32| {
-            let mut x = 1.0f64;
-            for _ in 0..k {
-                x *= 10.0;
-            }
-            x
-        };
-        if e >= 0 {
-            m * p(e)
-        } else {
-            m / p(-e)
-        }
-    }
-}
-
 /// One settable value.
 pub struct Param {
     /// Path name; its suffix is the unit (`_s`, `_m`, `_pa`, ...).
     pub name: &'static str,
     /// Smallest accepted value.
-    pub min: Bound,
+    pub min: f64,
     /// Largest accepted value.
-    pub max: Bound,
+    pub max: f64,
     /// Type.
     pub kind: ParamKind,
 }
@@ -215,7 +191,7 @@ impl Param {
     /// `v` as it is stored: checked against the range and the type, an `f32`
     /// setting rounded to the nearest `f32` within the range.
     pub fn check(&self, v: f64) -> Result<f64, SettingsError> {
-        let (lo, hi) = (self.min.value(), self.max.value());
+        let (lo, hi) = (self.min, self.max);
         if !(v >= lo && v <= hi) {
             return Err(SettingsError::Range);
         }
@@ -322,98 +298,98 @@ pub const N_PARAMS: usize = 67;
 
 params! {
     // Plain MPC design.
-    ("mpc.np", Bound(1, 0), Bound(32, 0), Int, controller.mpc.np),
-    ("mpc.nc", Bound(1, 0), Bound(8, 0), Int, controller.mpc.nc),
-    ("mpc.ts_s", Bound(1, -3), Bound(1, 1), F64, controller.mpc.ts_s),
-    ("mpc.rw", Bound(1, -9), Bound(1, 9), F64, controller.mpc.rw),
+    ("mpc.np", 1.0, 32.0, Int, controller.mpc.np),
+    ("mpc.nc", 1.0, 8.0, Int, controller.mpc.nc),
+    ("mpc.ts_s", 1e-3, 10.0, F64, controller.mpc.ts_s),
+    ("mpc.rw", 1e-9, 1e9, F64, controller.mpc.rw),
     // MPC-ESO design.
-    ("mpc_eso.np", Bound(1, 0), Bound(32, 0), Int, controller.mpc_eso.np),
-    ("mpc_eso.nc", Bound(1, 0), Bound(8, 0), Int, controller.mpc_eso.nc),
-    ("mpc_eso.ts_s", Bound(1, -3), Bound(1, 1), F64, controller.mpc_eso.ts_s),
-    ("mpc_eso.rw", Bound(1, -9), Bound(1, 9), F64, controller.mpc_eso.rw),
+    ("mpc_eso.np", 1.0, 32.0, Int, controller.mpc_eso.np),
+    ("mpc_eso.nc", 1.0, 8.0, Int, controller.mpc_eso.nc),
+    ("mpc_eso.ts_s", 1e-3, 10.0, F64, controller.mpc_eso.ts_s),
+    ("mpc_eso.rw", 1e-9, 1e9, F64, controller.mpc_eso.rw),
     // Constrained MPC-ESO design (dca_core::cmpc).
-    ("cmpc.np", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.np),
-    ("cmpc.block1", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[0]),
-    ("cmpc.block2", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[1]),
-    ("cmpc.block3", Bound(1, 0), Bound(1, 2), Int, controller.cmpc.blocks[2]),
-    ("cmpc.ts_s", Bound(1, -3), Bound(1, 1), F64, controller.cmpc.ts_s),
-    ("cmpc.rw", Bound(1, -9), Bound(1, 9), F64, controller.cmpc.rw),
-    ("cmpc.a_max_mps2", Bound(1, -3), Bound(1, 4), F64, controller.cmpc.a_max_mps2),
-    ("cmpc.load_ff", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.load_ff),
-    ("cmpc.preview", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.preview),
-    ("cmpc.comp_ff", Bound(0, 0), Bound(1, 0), F64, controller.cmpc.comp_ff),
+    ("cmpc.np", 1.0, 100.0, Int, controller.cmpc.np),
+    ("cmpc.block1", 1.0, 100.0, Int, controller.cmpc.blocks[0]),
+    ("cmpc.block2", 1.0, 100.0, Int, controller.cmpc.blocks[1]),
+    ("cmpc.block3", 1.0, 100.0, Int, controller.cmpc.blocks[2]),
+    ("cmpc.ts_s", 1e-3, 10.0, F64, controller.cmpc.ts_s),
+    ("cmpc.rw", 1e-9, 1e9, F64, controller.cmpc.rw),
+    ("cmpc.a_max_mps2", 1e-3, 10000.0, F64, controller.cmpc.a_max_mps2),
+    ("cmpc.load_ff", 0.0, 1.0, F64, controller.cmpc.load_ff),
+    ("cmpc.preview", 0.0, 1.0, F64, controller.cmpc.preview),
+    ("cmpc.comp_ff", 0.0, 1.0, F64, controller.cmpc.comp_ff),
     // Observer.
-    ("eso.beta1", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta1),
-    ("eso.beta2", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta2),
-    ("eso.beta3", Bound(0, 0), Bound(1, 6), F64, controller.eso.beta3),
-    ("eso.b0", Bound(-1, 3), Bound(1, 3), F64, controller.eso.b0),
-    ("eso.h_s", Bound(1, -3), Bound(1, 0), F64, controller.eso.h_s),
-    ("eso.alpha1", Bound(1, -3), Bound(1, 0), F64, controller.eso.alpha1),
-    ("eso.alpha2", Bound(1, -3), Bound(1, 0), F64, controller.eso.alpha2),
-    ("eso.delta_m", Bound(1, -6), Bound(1, 0), F64, controller.eso.delta_m),
+    ("eso.beta1", 0.0, 1e6, F64, controller.eso.beta1),
+    ("eso.beta2", 0.0, 1e6, F64, controller.eso.beta2),
+    ("eso.beta3", 0.0, 1e6, F64, controller.eso.beta3),
+    ("eso.b0", -1000.0, 1000.0, F64, controller.eso.b0),
+    ("eso.h_s", 1e-3, 1.0, F64, controller.eso.h_s),
+    ("eso.alpha1", 1e-3, 1.0, F64, controller.eso.alpha1),
+    ("eso.alpha2", 1e-3, 1.0, F64, controller.eso.alpha2),
+    ("eso.delta_m", 1e-6, 1.0, F64, controller.eso.delta_m),
     // Tracking differentiator (its step is the ESO's).
-    ("td.r_mps2", Bound(1, -3), Bound(1, 4), F32, controller.td.r_mps2),
-    ("td.h0_s", Bound(1, -4), Bound(1, 0), F32, controller.td.h0_s),
+    ("td.r_mps2", 1e-3, 10000.0, F32, controller.td.r_mps2),
+    ("td.h0_s", 1e-4, 1.0, F32, controller.td.h0_s),
     // PI(D).
-    ("pid.kp", Bound(0, 0), Bound(1, 4), F32, controller.pid.kp),
-    ("pid.ki", Bound(0, 0), Bound(1, 4), F32, controller.pid.ki),
-    ("pid.kd", Bound(0, 0), Bound(1, 4), F32, controller.pid.kd),
-    ("pid.ts_s", Bound(1, -3), Bound(1, 1), F32, controller.pid.ts_s),
+    ("pid.kp", 0.0, 10000.0, F32, controller.pid.kp),
+    ("pid.ki", 0.0, 10000.0, F32, controller.pid.ki),
+    ("pid.kd", 0.0, 10000.0, F32, controller.pid.kd),
+    ("pid.ts_s", 1e-3, 10.0, F32, controller.pid.ts_s),
     // Fuzzy PID.
-    ("fuzzy.kp", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.base.kp),
-    ("fuzzy.ki", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.base.ki),
-    ("fuzzy.kd", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.base.kd),
-    ("fuzzy.ts_s", Bound(1, -3), Bound(1, 1), F32, controller.fuzzy.base.ts_s),
-    ("fuzzy.e_span_m", Bound(1, -6), Bound(1, 0), F32, controller.fuzzy.e_span_m),
+    ("fuzzy.kp", 0.0, 10000.0, F32, controller.fuzzy.base.kp),
+    ("fuzzy.ki", 0.0, 10000.0, F32, controller.fuzzy.base.ki),
+    ("fuzzy.kd", 0.0, 10000.0, F32, controller.fuzzy.base.kd),
+    ("fuzzy.ts_s", 1e-3, 10.0, F32, controller.fuzzy.base.ts_s),
+    ("fuzzy.e_span_m", 1e-6, 1.0, F32, controller.fuzzy.e_span_m),
     (
         "fuzzy.ec_span_mps",
-        Bound(1, -6), Bound(1, 1),
+        1e-6, 10.0,
         F32,
         controller.fuzzy.ec_span_mps
     ),
-    ("fuzzy.dkp_max", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.dkp_max),
-    ("fuzzy.dki_max", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.dki_max),
-    ("fuzzy.dkd_max", Bound(0, 0), Bound(1, 4), F32, controller.fuzzy.dkd_max),
+    ("fuzzy.dkp_max", 0.0, 10000.0, F32, controller.fuzzy.dkp_max),
+    ("fuzzy.dki_max", 0.0, 10000.0, F32, controller.fuzzy.dki_max),
+    ("fuzzy.dkd_max", 0.0, 10000.0, F32, controller.fuzzy.dkd_max),
     // Controller limits.
     (
         "limits.v_max_mps",
-        Bound(1, -4), Bound(1, 0),
+        1e-4, 1.0,
         F32,
         controller.limits.v_max_mps
     ),
-    ("limits.x_min_m", Bound(-1, 0), Bound(1, 0), F32, controller.limits.x_min_m),
-    ("limits.x_max_m", Bound(-1, 0), Bound(1, 0), F32, controller.limits.x_max_m),
+    ("limits.x_min_m", -1.0, 1.0, F32, controller.limits.x_min_m),
+    ("limits.x_max_m", -1.0, 1.0, F32, controller.limits.x_max_m),
     (
         "limits.xo_plausible_m",
-        Bound(1, -3), Bound(1, 1),
+        1e-3, 10.0,
         F32,
         controller.xo_plausible_m
     ),
     // Sensor calibrations: value = offset + gain * raw.
-    ("cal.lvdt.gain", Bound(-1, 0), Bound(1, 0), F32, cal.lvdt.gain),
-    ("cal.lvdt.offset", Bound(-1, 0), Bound(1, 0), F32, cal.lvdt.offset),
-    ("cal.p1.gain", Bound(-1, 6), Bound(1, 6), F32, cal.p1.gain),
-    ("cal.p1.offset", Bound(-1, 8), Bound(1, 8), F32, cal.p1.offset),
-    ("cal.p2.gain", Bound(-1, 6), Bound(1, 6), F32, cal.p2.gain),
-    ("cal.p2.offset", Bound(-1, 8), Bound(1, 8), F32, cal.p2.offset),
-    ("cal.force.gain", Bound(-1, 4), Bound(1, 4), F32, cal.force.gain),
-    ("cal.force.offset", Bound(-1, 6), Bound(1, 6), F32, cal.force.offset),
-    ("cal.encoder.gain", Bound(-1, -3), Bound(1, -3), F32, cal.encoder.gain),
-    ("cal.encoder.offset", Bound(-1, 0), Bound(1, 0), F32, cal.encoder.offset),
+    ("cal.lvdt.gain", -1.0, 1.0, F32, cal.lvdt.gain),
+    ("cal.lvdt.offset", -1.0, 1.0, F32, cal.lvdt.offset),
+    ("cal.p1.gain", -1e6, 1e6, F32, cal.p1.gain),
+    ("cal.p1.offset", -1e8, 1e8, F32, cal.p1.offset),
+    ("cal.p2.gain", -1e6, 1e6, F32, cal.p2.gain),
+    ("cal.p2.offset", -1e8, 1e8, F32, cal.p2.offset),
+    ("cal.force.gain", -10000.0, 10000.0, F32, cal.force.gain),
+    ("cal.force.offset", -1e6, 1e6, F32, cal.force.offset),
+    ("cal.encoder.gain", -1e-3, 1e-3, F32, cal.encoder.gain),
+    ("cal.encoder.offset", -1.0, 1.0, F32, cal.encoder.offset),
     // Drive.
-    ("drive.duty_per_mps", Bound(0, 0), Bound(1, 4), F32, drive.duty_per_mps),
-    ("drive.invert", Bound(0, 0), Bound(1, 0), Bool, drive.invert),
+    ("drive.duty_per_mps", 0.0, 10000.0, F32, drive.duty_per_mps),
+    ("drive.invert", 0.0, 1.0, Bool, drive.invert),
     // Supervisor.
-    ("sup.lvdt_min_m", Bound(-1, 0), Bound(1, 0), F32, limits.lvdt_valid_m[0]),
-    ("sup.lvdt_max_m", Bound(-1, 0), Bound(1, 0), F32, limits.lvdt_valid_m[1]),
-    ("sup.p_min_pa", Bound(-1, 8), Bound(1, 8), F32, limits.p_valid_pa[0]),
-    ("sup.p_valid_max_pa", Bound(-1, 8), Bound(1, 8), F32, limits.p_valid_pa[1]),
-    ("sup.ft_min_n", Bound(-1, 6), Bound(1, 6), F32, limits.ft_valid_n[0]),
-    ("sup.ft_max_n", Bound(-1, 6), Bound(1, 6), F32, limits.ft_valid_n[1]),
-    ("sup.p_max_pa", Bound(0, 0), Bound(1, 8), F32, limits.p_max_pa),
-    ("sup.stroke_min_m", Bound(-1, 0), Bound(1, 0), F32, limits.stroke_m[0]),
-    ("sup.stroke_max_m", Bound(-1, 0), Bound(1, 0), F32, limits.stroke_m[1]),
-    ("hil.timeout_ms", Bound(0, 0), Bound(6, 4), Int, hil_timeout_ms),
+    ("sup.lvdt_min_m", -1.0, 1.0, F32, limits.lvdt_valid_m[0]),
+    ("sup.lvdt_max_m", -1.0, 1.0, F32, limits.lvdt_valid_m[1]),
+    ("sup.p_min_pa", -1e8, 1e8, F32, limits.p_valid_pa[0]),
+    ("sup.p_valid_max_pa", -1e8, 1e8, F32, limits.p_valid_pa[1]),
+    ("sup.ft_min_n", -1e6, 1e6, F32, limits.ft_valid_n[0]),
+    ("sup.ft_max_n", -1e6, 1e6, F32, limits.ft_valid_n[1]),
+    ("sup.p_max_pa", 0.0, 1e8, F32, limits.p_max_pa),
+    ("sup.stroke_min_m", -1.0, 1.0, F32, limits.stroke_m[0]),
+    ("sup.stroke_max_m", -1.0, 1.0, F32, limits.stroke_m[1]),
+    ("hil.timeout_ms", 0.0, 60000.0, Int, hil_timeout_ms),
 }
 
 /// The tables of [`PARAMS`] whose values are fields of [`ControllerConfig`]
@@ -722,10 +698,7 @@ mod tests {
             let (s, _) = Settings::default().with(name, v).unwrap();
             let p = find(name).unwrap();
             let got = p.get(&s);
-            assert!(
-                got >= p.min.value() && got <= p.max.value(),
-                "{name} = {got:e}"
-            );
+            assert!(got >= p.min && got <= p.max, "{name} = {got:e}");
             // At most one f32 step away.
             assert!(
                 (got - v).abs() <= v.abs() * f32::EPSILON as f64,
@@ -749,8 +722,8 @@ mod tests {
             let mut cfg = ControllerConfig::preset(Preset::Fast, ControllerKind::Pid);
             // A value inside the range that differs from the preset's.
             let v = match p.kind {
-                ParamKind::Int | ParamKind::Bool => p.max.value(),
-                _ => 0.5 * p.min.value() + 0.5 * p.max.value(),
+                ParamKind::Int | ParamKind::Bool => p.max,
+                _ => 0.5 * p.min + 0.5 * p.max,
             };
             let r = set_controller(&mut cfg, p.name, v);
             if !p.is_controller() {

@@ -2,10 +2,15 @@
 //! core's own control loop.
 
 use dca_app::console::{
-    write_log_header, write_log_row, Console, Edit, LineEditor, LineError, LogRow, Received,
-    Receiver, Status, Target, COMMANDS, MAX_LINE, RX_QUEUE_BYTES,
+    write_log_header, write_log_row, Console, Edit, LineEditor, LineError, LogRow, Output,
+    Received, Receiver, Status, Target, COMMANDS, MAX_LINE, RX_QUEUE_BYTES,
 };
-use dca_app::settings::Settings;
+use dca_app::frame;
+use dca_app::record::{
+    PackedRow, RecordChunk, RecordError, RecordHead, RecordInfo, Recorder, CHUNK_ROWS, REF_LSB_M,
+    VCMD_LSB_MPS,
+};
+use dca_app::settings::{Calibration, Settings};
 use dca_app::supervisor::{ControlLoop, Refused, State};
 use dca_app::text::Buf;
 use dca_core::controller::{Controller, ControllerKind, Sample};
@@ -19,6 +24,15 @@ struct Model {
     hil: bool,
     echo: bool,
     applied: u32,
+    rec: Recorder<'static>,
+}
+
+/// Rows of the model's record buffer: 7 in a first block, 5 in a second.
+const REC_A: usize = 7;
+const REC_B: usize = 5;
+
+fn block(n: usize) -> &'static mut [PackedRow] {
+    Box::leak(vec![[0u8; 16]; n].into_boxed_slice())
 }
 
 impl Model {
@@ -34,7 +48,23 @@ impl Model {
             hil: false,
             echo: false,
             applied: 0,
+            rec: Recorder::new(block(REC_A), block(REC_B)),
         }
+    }
+
+    /// One control tick on `sample`, recorded as the firmware records it;
+    /// the command.
+    fn tick(&mut self, sample: &Sample) -> f32 {
+        let out = self.lp.tick(sample, None);
+        let running = self.lp.supervisor().state() == State::Running;
+        self.rec.push(
+            running,
+            out.ref_m,
+            out.v_cmd_mps,
+            sample,
+            self.lp.supervisor().faults().0,
+        );
+        out.v_cmd_mps
     }
 }
 
@@ -99,12 +129,54 @@ impl Target for Model {
     fn echo(&mut self, on: bool) {
         self.echo = on;
     }
+    fn record_arm(
+        &mut self,
+        rows: u32,
+        cal: &Calibration,
+        controller: u8,
+    ) -> Result<(), RecordError> {
+        self.rec.arm(rows, cal, controller)
+    }
+    fn record_off(&mut self) {
+        self.rec.off()
+    }
+    fn record_end(&mut self) {
+        self.rec.end()
+    }
+    fn record_info(&mut self) -> RecordInfo {
+        self.rec.info()
+    }
+    fn record_rows(&mut self, first: u32, out: &mut [PackedRow]) -> usize {
+        self.rec.rows(first, out)
+    }
+}
+
+/// A reply as the bytes the board sends.
+#[derive(Default)]
+struct Out(Vec<u8>);
+
+impl std::fmt::Write for Out {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.0.extend_from_slice(s.as_bytes());
+        Ok(())
+    }
+}
+
+impl Output for Out {
+    fn write_bytes(&mut self, bytes: &[u8]) {
+        self.0.extend_from_slice(bytes);
+    }
+}
+
+fn say_bytes(c: &mut Console, m: &mut Model, line: &str) -> Vec<u8> {
+    let mut out = Out::default();
+    c.execute(line, m, &mut out);
+    out.0
 }
 
 fn say(c: &mut Console, m: &mut Model, line: &str) -> String {
-    let mut out = String::new();
-    c.execute(line, m, &mut out);
-    out
+    let out = say_bytes(c, m, line);
+    String::from_utf8(out).expect("a text reply")
 }
 
 fn last_line(reply: &str) -> &str {
@@ -551,4 +623,125 @@ fn the_manual_shows_the_help_the_console_prints() {
         shown, printed,
         "update the console section of docs/firmware.md"
     );
+}
+
+/// A dump read back: its head and its rows, every frame checked.
+fn read_dump(reply: &[u8]) -> (RecordHead, Vec<PackedRow>) {
+    let nl = reply.iter().position(|b| *b == b'\n').unwrap();
+    let first = std::str::from_utf8(&reply[..nl]).unwrap().trim_end();
+    let mut it = first.strip_prefix("dump rows=").unwrap().split(" frames=");
+    let rows: u32 = it.next().unwrap().parse().unwrap();
+    let frames: u32 = it.next().unwrap().parse().unwrap();
+    let mut rest = reply[nl + 1..].to_vec();
+    let mut bodies = Vec::new();
+    for _ in 0..frames {
+        let end = rest.iter().position(|b| *b == 0).unwrap();
+        bodies.push(rest[..end].to_vec());
+        rest.drain(..=end);
+    }
+    assert_eq!(rest, b"ok\r\n");
+    let head: RecordHead = frame::decode(&mut bodies[0]).unwrap();
+    assert_eq!((head.rows, head.frames()), (rows, frames));
+    let mut out = Vec::new();
+    for (k, body) in bodies[1..].iter_mut().enumerate() {
+        let chunk: RecordChunk = frame::decode(body).unwrap();
+        assert_eq!(chunk.seq as usize, k + 1);
+        out.extend_from_slice(&chunk.rows);
+    }
+    out.truncate(rows as usize);
+    (head, out)
+}
+
+#[test]
+fn a_record_starts_with_the_motion_takes_every_tick_and_dumps_as_frames() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    assert_eq!(
+        last_line(&say(&mut c, &mut m, "dump")),
+        "error: nothing recorded"
+    );
+    // 12 rows of 1 ms fit; 13 do not.
+    assert!(say(&mut c, &mut m, "record 0.013").starts_with("error: record length"));
+    assert!(say(&mut c, &mut m, "record 0").starts_with("error: record length"));
+    ok(&mut c, &mut m, "record 0.010");
+    let st = ok(&mut c, &mut m, "record");
+    assert!(
+        st.starts_with("record=armed rows=0 of 10 capacity=12 rows"),
+        "{st}"
+    );
+    ok(&mut c, &mut m, "arm");
+    let sample = |k: usize| Sample {
+        xo_m: 0.001 * k as f32,
+        xi_m: 0.0011 * k as f32,
+        p1_pa: 1.0e6 + 1.0e4 * k as f32,
+        p2_pa: 2.0e6,
+        ft_n: -10.0 * k as f32,
+    };
+    // Armed, not moving: nothing recorded yet.
+    for k in 0..3 {
+        m.tick(&sample(k));
+    }
+    assert_eq!(m.rec.info().rows, 0);
+    ok(&mut c, &mut m, "goto 20");
+    let mut want = Vec::new();
+    for k in 0..15 {
+        let s = sample(k);
+        let v = m.tick(&s);
+        want.push((m.lp.last_ref_m(), v, s));
+    }
+    let st = ok(&mut c, &mut m, "record");
+    assert!(st.starts_with("record=done rows=10 of 10"), "{st}");
+    let reply = say_bytes(&mut c, &mut m, "dump");
+    let (head, rows) = read_dump(&reply);
+    assert_eq!(rows.len(), 10);
+    assert_eq!(head.frames() as usize, 1 + 10_usize.div_ceil(CHUNK_ROWS));
+    let cal = m.settings.cal;
+    for (k, (row, (ref_m, v, s))) in rows.iter().zip(&want).enumerate() {
+        let r = head.row(row);
+        assert!(
+            (r.ref_m - f64::from(*ref_m)).abs() <= REF_LSB_M / 2.0,
+            "row {k}"
+        );
+        assert!(
+            (r.v_cmd_mps - f64::from(*v)).abs() <= VCMD_LSB_MPS / 2.0,
+            "row {k}"
+        );
+        for (got, v, ch) in [
+            (r.sample.xo_m, s.xo_m, cal.lvdt),
+            (r.sample.p1_pa, s.p1_pa, cal.p1),
+            (r.sample.p2_pa, s.p2_pa, cal.p2),
+            (r.sample.ft_n, s.ft_n, cal.force),
+            (r.sample.xi_m, s.xi_m, cal.encoder),
+        ] {
+            assert!(
+                (got - v).abs() <= 0.5001 * ch.gain,
+                "row {k}: {got} for {v} (one code {})",
+                ch.gain
+            );
+        }
+    }
+    // A second dump sends the same record; `record off` drops it.
+    assert_eq!(say_bytes(&mut c, &mut m, "dump"), reply);
+    ok(&mut c, &mut m, "record off");
+    assert_eq!(
+        last_line(&say(&mut c, &mut m, "dump")),
+        "error: nothing recorded"
+    );
+}
+
+#[test]
+fn dump_ends_a_record_being_taken_and_sends_what_it_has() {
+    let mut m = Model::new();
+    let mut c = Console::new(m.settings);
+    ok(&mut c, &mut m, "record 0.012");
+    ok(&mut c, &mut m, "arm");
+    ok(&mut c, &mut m, "goto 10");
+    for _ in 0..8 {
+        m.tick(&Sample::default());
+    }
+    let (head, rows) = read_dump(&say_bytes(&mut c, &mut m, "dump"));
+    assert_eq!((head.rows, rows.len()), (8, 8));
+    // Ended: later ticks are not recorded.
+    m.tick(&Sample::default());
+    assert_eq!(m.rec.info().rows, 8);
 }

@@ -27,8 +27,8 @@ fn rows() -> Vec<String> {
             format!(
                 "| `{}` | {} | {} | {kind} |",
                 p.name,
-                num(p.min.value()),
-                num(p.max.value())
+                num(p.min),
+                num(p.max)
             )
         })
         .collect()

@@ -72,8 +72,13 @@ impl RunOpts {
         Ok(())
     }
 
-    /// The run request with a seed and a plant step.
-    pub fn request(self, seed: Option<u64>, dt_s: Option<f64>) -> RunRequest {
+    /// The run request with a seed, a plant step and a control tick.
+    pub fn request(
+        self,
+        seed: Option<u64>,
+        dt_s: Option<f64>,
+        control_tick_s: Option<f64>,
+    ) -> RunRequest {
         RunRequest {
             scenario: self.scenario,
             controller: self.controller,
@@ -82,11 +87,17 @@ impl RunOpts {
             sensors: self.sensors,
             seed,
             dt_s,
+            control_tick_s,
             effects: self.effects,
             plant: self.plant,
         }
     }
 }
+
+/// Help of `--control-tick` (run and sweep).
+pub const CONTROL_TICK_HELP: &str = "The controller's tick in seconds (default 0.001, the \
+     board's). A finer tick (a whole number of plant steps dividing 1 ms, e.g. 0.0001) is a \
+     study of what the board cannot do: its runs no longer predict the board";
 
 /// A positive, finite number of seconds (at most an hour).
 pub fn seconds(s: f64, what: &str) -> anyhow::Result<std::time::Duration> {

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use host_sim::hil::board::qemu::firmware_elf;
+use host_sim::hil::board::qemu::{find_qemu, firmware_elf, QemuOptions};
 use host_sim::hil::board::session::{parse_script, run_session, SessionOptions, Target};
 
 use super::args::{input_file, seconds};
@@ -26,12 +26,18 @@ pub struct Args {
     /// (blank lines and `#` comments skipped; `sleep S` pauses S seconds).
     #[arg(long)]
     script: Option<PathBuf>,
-    /// Write the telemetry stream (after `telemetry on`) to this run log.
+    /// Write the telemetry stream (after `telemetry on`) to this run log;
+    /// where the session issues `dump`, the board's record instead (1 ms).
     #[arg(long)]
     capture: Option<PathBuf>,
     /// Longest wait for a reply, s.
     #[arg(long, default_value_t = 10.0)]
     timeout: f64,
+    /// A live view in the terminal of what the board streams (reference and
+    /// position, pressures, force, command), the console beside it; turns the
+    /// stream on (a row every 10 ms) for the session.
+    #[arg(long, conflicts_with = "script")]
+    scope: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -45,7 +51,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let target = match (a.port, a.qemu) {
         (Some(p), false) => Target::Port(p, a.baud),
-        (None, true) => Target::Qemu(firmware_elf(a.elf)?, Default::default()),
+        (None, true) => {
+            // Before any build: a missing QEMU is said at once.
+            let opts = QemuOptions::default();
+            find_qemu(&opts.qemu)?;
+            Target::Qemu(firmware_elf(a.elf)?, opts)
+        }
         _ => anyhow::bail!("give --port DEVICE (a board) or --qemu"),
     };
     let report = run_session(&SessionOptions {
@@ -53,6 +64,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         script,
         capture: a.capture,
         timeout: seconds(a.timeout, "--timeout")?,
+        scope: a.scope,
     })?;
     if let Some(p) = &report.capture_problem {
         anyhow::bail!("{p}");

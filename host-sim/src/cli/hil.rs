@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use host_sim::hil::board::qemu::{firmware_elf, QemuOptions};
-use host_sim::hil::{run_hil_qemu, run_hil_serial, run_software, SerialOptions};
+use host_sim::hil::board::qemu::{find_qemu, firmware_elf, QemuOptions};
+use host_sim::hil::{run_hil_qemu_with, run_hil_serial_with, run_software, SerialOptions};
 use host_sim::sim::request::resolve;
 
 use super::args::{seconds, RunOpts};
@@ -21,7 +21,9 @@ pub struct Args {
     #[arg(long, default_value_t = 2.0)]
     timeout: f64,
     /// Set the firmware's link timeout (`hil.timeout_ms`) through the console
-    /// before arming (needs --console or --qemu; default: the board's setting).
+    /// before arming (needs --console or --qemu). Default: the board's own
+    /// setting (factory 100 ms); with --qemu 5000, since the emulated board's
+    /// clock follows a host that is not real time.
     #[arg(long)]
     link_timeout_ms: Option<u32>,
     /// Start the emulated firmware (QEMU netduinoplus2) instead of a board.
@@ -43,30 +45,52 @@ pub struct Args {
     /// Where to write the run log (CSV; optional).
     #[arg(long)]
     log: Option<PathBuf>,
+    /// Also have the board record every tick of the run (`record S`, then
+    /// `dump`; needs --console or --qemu) and write that record here as a
+    /// 1 ms run log.
+    #[arg(long, value_name = "OUT.csv")]
+    record: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.what.check_files()?;
-    let spec = resolve(&a.what.request(a.seed, None))?;
-    let trace = match (a.port, a.qemu) {
+    // The board's tick (the default): the only one a board runs.
+    let spec = resolve(&a.what.request(a.seed, None, None))?;
+    let record = a.record.is_some();
+    let (trace, board_record) = match (a.port, a.qemu) {
         (Some(port), false) => {
             if a.link_timeout_ms.is_some() && a.console.is_none() {
                 anyhow::bail!("--link-timeout-ms needs --console (it is set there)");
+            }
+            if record && a.console.is_none() {
+                anyhow::bail!("--record needs --console (the record is asked for there)");
             }
             let opts = SerialOptions {
                 console: a.console,
                 timeout: seconds(a.timeout, "--timeout")?,
                 link_timeout_ms: a.link_timeout_ms,
+                record,
                 ..Default::default()
             };
-            run_hil_serial(&spec, &port, &opts)?
+            run_hil_serial_with(&spec, &port, &opts)?
         }
         (None, true) => {
+            // Before any build: a missing QEMU is said at once.
+            find_qemu(&QemuOptions::default().qemu)?;
             let elf = firmware_elf(a.elf)?;
-            run_hil_qemu(&spec, &elf, &QemuOptions::default(), a.link_timeout_ms)?
+            let q = QemuOptions::default();
+            run_hil_qemu_with(&spec, &elf, &q, a.link_timeout_ms, record)?
         }
         _ => anyhow::bail!("give --port DEVICE (a board) or --qemu (the emulated firmware)"),
     };
+    if let (Some(path), Some(rec)) = (&a.record, &board_record) {
+        rec.write(path, &[("scenario", spec.scenario.name().to_string())])?;
+        eprintln!(
+            "the board's record: {} rows of 1 ms -> {}",
+            rec.rows.len(),
+            path.display()
+        );
+    }
     match &a.log {
         Some(log) => {
             let mut out = std::fs::File::create(log).with_context(|| log.display().to_string())?;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use host_sim::sim::request::{execute, trace_metrics};
 
-use super::args::RunOpts;
+use super::args::{RunOpts, CONTROL_TICK_HELP};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -17,6 +17,8 @@ pub struct Args {
     /// Plant step in seconds (default 1e-4; 2e-4 for the GRNN hose).
     #[arg(long)]
     dt: Option<f64>,
+    #[arg(long, value_name = "S", help = CONTROL_TICK_HELP)]
+    control_tick: Option<f64>,
     /// Where to write the run log (CSV).
     #[arg(long)]
     log: PathBuf,
@@ -24,7 +26,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     a.what.check_files()?;
-    let req = a.what.request(a.seed, a.dt);
+    let req = a.what.request(a.seed, a.dt, a.control_tick);
     let (spec, trace) = execute(&req, &a.log)?;
     let m = trace_metrics(&trace, &spec.scenario);
     eprintln!(

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, SweepParam};
 use host_sim::studies::montecarlo::{outcome, write_report};
 
-use super::args::RunOpts;
+use super::args::{RunOpts, CONTROL_TICK_HELP};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -32,6 +32,8 @@ pub struct Args {
     /// Write a Markdown report with histograms of the metrics to DIR/report.md.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    #[arg(long, value_name = "S", help = CONTROL_TICK_HELP)]
+    control_tick: Option<f64>,
     /// Where to write the CSV.
     #[arg(long)]
     out: PathBuf,
@@ -77,7 +79,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|f| Perturb::new(f, a.perturb_keys.as_deref()))
         .transpose()?;
     let setup = setup_text(&a, perturb.as_ref(), seeds.len());
-    let base = a.what.request(None, None);
+    let base = a.what.request(None, None, a.control_tick);
     let t0 = std::time::Instant::now();
     let opts = BatchOptions {
         perturb,

@@ -15,8 +15,10 @@
 //! in `round(1e-3 / dt)` RK4 steps of the spec's plant step `dt` (1e-4 s
 //! nominal), the command held and the load evaluated at each plant step. One
 //! run-log row is written per tick, before the plant moves (docs/interfaces.md
-//! section 1). This differs from [`crate::sim::run`], whose controller ticks at
-//! the plant step: compare HIL runs with [`run_software`], not with `sim::run`.
+//! section 1). [`crate::sim::run`] ticks its controller the same way (at the
+//! board's 1 ms by default) but calls dca-core's `Controller` without the
+//! supervisor: [`run_software`] is the bit-exact reference of a HIL run, and
+//! `sim::run` agrees with it to the run log's precision.
 //!
 //! # The exchange
 //! Per tick the host sends a [`SampleFrame`] (reference and sensor readings as
@@ -49,6 +51,7 @@ use dca_core::controller::{ControllerConfig, Preset, Sample};
 use self::board::console::{ConsoleClient, CONSOLE_BAUD};
 use self::board::port::SerialLink;
 use self::board::qemu::{Emulator, QemuOptions};
+use self::board::record::BoardRecord;
 use self::board::BoardError;
 use crate::model::rig::Rig;
 use crate::model::scenario::tick_time_s;
@@ -70,6 +73,9 @@ pub enum HilError {
     /// The console or a port.
     #[error(transparent)]
     Board(#[from] BoardError),
+    /// The board's record of the run could not be read whole.
+    #[error("the board's record of the run: {0}")]
+    Record(#[from] crate::hil::board::record::DumpError),
     /// The first sample frame got no valid reply.
     #[error(
         "no HIL reply on {port} at {baud} baud within {secs:.1} s: sent a frame delimiter and \
@@ -546,6 +552,8 @@ pub struct SerialOptions {
     /// The firmware's link timeout (`hil.timeout_ms`) to set through the
     /// console before arming; `None` keeps the board's setting.
     pub link_timeout_ms: Option<u32>,
+    /// Have the board record every tick of the run (needs `console`).
+    pub record: bool,
 }
 
 impl Default for SerialOptions {
@@ -555,11 +563,14 @@ impl Default for SerialOptions {
             console: None,
             timeout: Duration::from_secs(2),
             link_timeout_ms: None,
+            record: false,
         }
     }
 }
 
-/// The lockstep run over an open console (optional) and HIL port.
+/// The lockstep run over an open console (optional) and HIL port; with
+/// `record` (and a console) the board also records every tick of the run
+/// (`record S` before, `dump` after).
 fn run_on_ports(
     spec: &RunSpec,
     console: Option<&mut ConsoleClient>,
@@ -567,10 +578,15 @@ fn run_on_ports(
     timeout: Duration,
     link_timeout_ms: Option<u32>,
     source: &str,
-) -> Result<HilTrace, HilError> {
+    record: bool,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
     let mut console = console;
     if let Some(c) = console.as_deref_mut() {
         prepare(c, spec, link_timeout_ms)?;
+        if record {
+            let ticks = spec.scenario.n_steps(BOARD_DT_S);
+            c.must(&format!("record {:.3}", ticks as f64 * BOARD_DT_S))?;
+        }
     }
     let mut stepper = LinkStepper::new(link, timeout)?;
     let trace = run_lockstep(spec, &mut stepper, source);
@@ -579,9 +595,14 @@ fn run_on_ports(
         let end = c.must("disarm").and_then(|_| c.must("hil off"));
         let trace = trace?;
         end?;
-        return Ok(trace);
+        let rec = if record {
+            Some(BoardRecord::from_reply(&c.command("dump")?)?)
+        } else {
+            None
+        };
+        return Ok((trace, rec));
     }
-    trace
+    trace.map(|t| (t, None))
 }
 
 /// Refuse a controller whose design model is not the nominal plant: the
@@ -608,6 +629,21 @@ pub fn run_hil_serial(
     port: &str,
     opts: &SerialOptions,
 ) -> Result<HilTrace, HilError> {
+    run_hil_serial_with(spec, port, opts).map(|(t, _)| t)
+}
+
+/// [`run_hil_serial`], and with `opts.record` (and a console) the board's
+/// own record of every tick of the run.
+pub fn run_hil_serial_with(
+    spec: &RunSpec,
+    port: &str,
+    opts: &SerialOptions,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
+    if opts.record && opts.console.is_none() {
+        return Err(HilError::Spec(
+            "the board's record needs its console (`record`, `dump`)".into(),
+        ));
+    }
     check_board_model(spec)?;
     let mut console = match &opts.console {
         Some(c) => Some(ConsoleClient::connect(
@@ -624,22 +660,41 @@ pub fn run_hil_serial(
         opts.timeout,
         opts.link_timeout_ms,
         "serial",
+        opts.record,
     )
 }
 
+/// The firmware's link timeout (`hil.timeout_ms`) [`run_hil_qemu`] sets unless
+/// told otherwise, ms. The emulated board keeps time by the host's clock
+/// (QEMU's `-icount sleep=on`), and the host is not real time: on a loaded
+/// machine a round trip through QEMU took up to 0.94 s (a build and a fuzzer
+/// running), far beyond the factory 100 ms a board keeps.
+pub const EMULATED_LINK_TIMEOUT_MS: u32 = 5_000;
+
 /// Run `spec` through the emulated firmware: start QEMU on `elf` with its
 /// USARTs on ptys, then exactly the board's path ([`run_hil_serial`]'s), and
-/// end QEMU. `link_timeout_ms` as in [`SerialOptions`]: the emulated board
-/// keeps time by the host's clock, so on a loaded host a frame can be later
-/// than the factory 100 ms (round trips of up to 0.9 s were measured with a
-/// build and a fuzzer running); runs that test bit identity, not timing, set
-/// a longer one.
+/// end QEMU. `link_timeout_ms` as in [`SerialOptions`], except that `None`
+/// sets [`EMULATED_LINK_TIMEOUT_MS`] rather than keeping the factory setting.
 pub fn run_hil_qemu(
     spec: &RunSpec,
     elf: &Path,
     opts: &QemuOptions,
     link_timeout_ms: Option<u32>,
 ) -> Result<HilTrace, HilError> {
+    run_hil_qemu_with(spec, elf, opts, link_timeout_ms, false).map(|(t, _)| t)
+}
+
+/// [`run_hil_qemu`], and with `record` the emulated board's own record of
+/// every tick of the run (`record S` before the run, `dump` after it; see
+/// dca_app::record).
+pub fn run_hil_qemu_with(
+    spec: &RunSpec,
+    elf: &Path,
+    opts: &QemuOptions,
+    link_timeout_ms: Option<u32>,
+    record: bool,
+) -> Result<(HilTrace, Option<BoardRecord>), HilError> {
+    let link_timeout_ms = Some(link_timeout_ms.unwrap_or(EMULATED_LINK_TIMEOUT_MS));
     check_board_model(spec)?;
     let emu = Emulator::start(elf, opts)?;
     let mut console = ConsoleClient::connect(
@@ -654,6 +709,7 @@ pub fn run_hil_qemu(
         opts.timeout,
         link_timeout_ms,
         "qemu",
+        record,
     )?;
     emu.quit(&mut console)?;
     Ok(trace)

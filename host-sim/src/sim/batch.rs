@@ -383,7 +383,7 @@ mod tests {
             .iter()
             .filter(|p| p.is_controller())
         {
-            let v = p.min.value();
+            let v = p.min;
             let q = SweepParam::parse(&format!("{}={v:?}", p.name)).unwrap();
             assert_eq!(q.path, p.name);
         }

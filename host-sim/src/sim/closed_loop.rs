@@ -1,8 +1,9 @@
 //! The one closed loop: the sensors read the plant, a control tick computes the
 //! command, the plant moves under it.
 //!
-//! Both the software loop ([`super::run_with`]: the controller ticked at every
-//! plant step) and the HIL lockstep ([`crate::hil::run_lockstep`]: the
+//! Both the software loop ([`super::run_with`]: the controller ticked every
+//! `controller.base_dt_s`, 1 ms as on the board unless a study asks for a
+//! finer tick) and the HIL lockstep ([`crate::hil::run_lockstep`]: the
 //! controller ticked every 1 ms, `round(1e-3 / dt)` plant steps per tick) are
 //! this loop ([`drive`]); what differs is given as parameters:
 //!

@@ -282,8 +282,8 @@ pub fn check_value(p: &'static Param, v: f64) -> Result<f64, ParamError> {
         path: p.name,
         value: v,
         reason: e.as_str(),
-        min: p.min.value(),
-        max: p.max.value(),
+        min: p.min,
+        max: p.max,
     })
 }
 
@@ -295,8 +295,8 @@ pub fn set_param(cfg: &mut ControllerConfig, path: &str, v: f64) -> Result<(), P
         path: p.name,
         value: v,
         reason: e.as_str(),
-        min: p.min.value(),
-        max: p.max.value(),
+        min: p.min,
+        max: p.max,
     })
 }
 
@@ -361,8 +361,8 @@ impl Visitor<'_> for ValueSeed {
                 p.name,
                 Num(v),
                 e.as_str(),
-                Num(p.min.value()),
-                Num(p.max.value())
+                Num(p.min),
+                Num(p.max)
             ))
         })
     }
@@ -952,7 +952,7 @@ preset = "fast"
     #[test]
     fn every_controller_setting_is_a_key_with_its_range() {
         for p in settings::PARAMS.iter() {
-            let text = format!("[{}]\n{} = {:?}\n", p.table(), p.key(), p.max.value());
+            let text = format!("[{}]\n{} = {:?}\n", p.table(), p.key(), p.max);
             let r = ConfigFile::parse_str(&text, "c.toml");
             if !p.is_controller() {
                 let e = r.unwrap_err();
@@ -960,16 +960,16 @@ preset = "fast"
                 continue;
             }
             let c = r.unwrap_or_else(|e| panic!("{}: {e}", p.name));
-            assert_eq!(c.params, vec![(p.name, p.check(p.max.value()).unwrap())]);
+            assert_eq!(c.params, vec![(p.name, p.check(p.max).unwrap())]);
             let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::Pid);
             c.apply(&mut cfg).unwrap();
             let s = dca_app::settings::Settings {
                 controller: cfg,
                 ..Default::default()
             };
-            assert_eq!(p.get(&s), p.check(p.max.value()).unwrap(), "{}", p.name);
+            assert_eq!(p.get(&s), p.check(p.max).unwrap(), "{}", p.name);
             // Just above the range: refused, at the value's line.
-            let above = p.max.value() * 1.5 + 1.0;
+            let above = p.max * 1.5 + 1.0;
             let text = format!(
                 "preset = \"fast\"\n[{}]\n{} = {above:?}\n",
                 p.table(),

@@ -12,13 +12,20 @@
 //! May import from [`crate::io`], [`crate::model`] and `sim` itself.
 //!
 //! # The software loop
-//! The plant, the sensors and the control core, ticked as in docs/model.md section 6.1.
+//! The plant, the sensors and the control core, ticked as on the board: the
+//! controller every control tick (`controller.base_dt_s` of the [`RunSpec`]:
+//! 1 ms, the board's, wherever host-sim's commands and studies build the
+//! spec), the plant in `p` RK4 steps of `dt_s` per tick (10 at the nominal
+//! 1e-4 s) with the command held ([`closed_loop::drive`]). A finer control
+//! tick is a study of what the board cannot do; it must be a whole number of
+//! plant steps and divide 1 ms. Open-loop scenarios apply their command at
+//! every plant step.
 //!
-//! Every base tick k (t_k = k dt):
-//! 1. the sensors read the state at t_k (and the load Ft(t_k));
+//! Every control tick j (t_j = j p dt):
+//! 1. the sensors read the state at t_j (and the load Ft(t_j));
 //! 2. the controller's `step` returns the command (closed loop), or the
 //!    scenario gives it (open loop);
-//! 3. the plant takes one RK4 step with (v_cmd, Ft(t_k)) held.
+//! 3. the plant takes its p RK4 steps with v_cmd held and Ft(t) at each step.
 //!
 //! A row is logged every millisecond, the first at t = 0 before the first
 //! plant step, with what the sensors reported (docs/interfaces.md section 1) and,
@@ -37,7 +44,7 @@ use crate::io::runlog::RunLog;
 use crate::model::effects::Effects;
 use crate::model::plant::{Plant, State};
 use crate::model::rig::{Rig, RigError};
-use crate::model::scenario::{Command, Scenario, Signal};
+use crate::model::scenario::{tick_time_s, Command, Scenario, Signal};
 use crate::model::sensors::{Readings, SensorMode};
 use closed_loop::{drive, ControlInput, Drive, Observer, Stepper, TickView, Timing};
 
@@ -46,7 +53,8 @@ use closed_loop::{drive, ControlInput, Drive, Observer, Stepper, TickView, Timin
 pub struct RunSpec {
     /// Reference and load profiles, duration.
     pub scenario: Scenario,
-    /// The controller (ignored by open-loop scenarios).
+    /// The controller (ignored by open-loop scenarios); it ticks every
+    /// `controller.base_dt_s` (the board's 1 ms in host-sim's commands).
     pub controller: ControllerConfig,
     /// The plant (hose model, parameters).
     pub plant: Plant,
@@ -56,7 +64,7 @@ pub struct RunSpec {
     pub sensors: SensorMode,
     /// Noise seed.
     pub seed: u64,
-    /// Plant step, s (1e-4 nominal; the controller's base tick follows it).
+    /// Plant step, s (1e-4 nominal).
     pub dt_s: f64,
 }
 
@@ -149,15 +157,15 @@ impl Trace {
 
 /// What a per-tick observer sees.
 pub struct Tick<'a> {
-    /// Base tick index.
+    /// Plant step index of the control tick.
     pub k: u64,
-    /// t_k, s.
+    /// Its time, s.
     pub t_s: f64,
-    /// The true state at t_k.
+    /// The true state then.
     pub state: &'a State,
     /// The sample given to the controller.
     pub sample: &'a Sample,
-    /// The reference r(t_k), m (closed loop).
+    /// The reference then, m (closed loop).
     pub ref_m: f64,
     /// The controller's output (the open-loop command in open loop).
     pub output: Output,
@@ -173,6 +181,14 @@ pub enum SimError {
     /// The plant step is outside [`MIN_DT_S`] to 1 ms, or 1 ms is not a
     /// whole number of steps.
     Step(f64),
+    /// The control tick is not a whole number of plant steps or does not
+    /// divide 1 ms.
+    Tick {
+        /// The control tick, s.
+        tick_s: f64,
+        /// The plant step, s.
+        dt_s: f64,
+    },
     /// The effects cannot be combined with this plant.
     Effects(RigError),
     /// The plant's state stopped being finite (checked on the 1 ms grid).
@@ -193,6 +209,13 @@ impl std::fmt::Display for SimError {
                 Num(*dt),
                 if dt.is_nan() { " (not a number)" } else { " s" },
                 Num(MIN_DT_S)
+            ),
+            Self::Tick { tick_s, dt_s } => write!(
+                f,
+                "control tick {} s must be a whole number of plant steps ({} s) and divide \
+                 the 1 ms log grid (the board's tick is 0.001 s)",
+                Num(*tick_s),
+                Num(*dt_s)
             ),
             Self::Diverged { t_s } => write!(
                 f,
@@ -259,7 +282,8 @@ impl Drive for SimCommand {
 }
 
 /// The software loop's observer: the hook at every tick, a [`Row`] every
-/// `log_every` ticks (1 ms), the state checked for divergence on that grid.
+/// `log_every` plant steps (1 ms), the state checked for divergence on that
+/// grid.
 struct Logger<H> {
     log_every: u64,
     /// No effect on: the row's acceleration from the plant alone.
@@ -325,12 +349,26 @@ pub fn steps_per_ms(dt_s: f64) -> Result<u64, SimError> {
     }
 }
 
-/// Run one scenario; `hook` sees every base tick after the controller step.
+/// The plant steps per control tick for the tick `tick_s` and the plant step
+/// `dt_s` (already checked by [`steps_per_ms`]): the tick must be a whole
+/// number of plant steps and divide 1 ms.
+pub fn steps_per_tick(tick_s: f64, dt_s: f64) -> Result<u64, SimError> {
+    let per_ms = steps_per_ms(dt_s)?;
+    let n = libm::round(tick_s / dt_s);
+    let whole = n >= 1.0 && (n * dt_s - tick_s).abs() < 1e-12;
+    if whole && per_ms.is_multiple_of(n as u64) {
+        Ok(n as u64)
+    } else {
+        Err(SimError::Tick { tick_s, dt_s })
+    }
+}
+
+/// Run one scenario; `hook` sees every control tick after the controller
+/// step (every plant step in open loop).
 pub fn run_with(spec: &RunSpec, hook: impl FnMut(&Tick)) -> Result<Trace, SimError> {
     let dt = spec.dt_s;
     let log_every = steps_per_ms(dt)?;
-    let mut cfg = spec.controller;
-    cfg.base_dt_s = dt;
+    let cfg = spec.controller;
     let scenario = &spec.scenario;
     // The controller, or the open-loop command.
     let source = match scenario.command() {
@@ -339,17 +377,23 @@ pub fn run_with(spec: &RunSpec, hook: impl FnMut(&Tick)) -> Result<Trace, SimErr
         }
         Command::OpenLoop(v) => Err(v),
     };
+    // The controller's tick, or every plant step for the open-loop command.
+    let per_tick = match source {
+        Ok(_) => steps_per_tick(cfg.base_dt_s, dt)?,
+        Err(_) => 1,
+    };
+    let tick_s = tick_time_s(per_tick, dt);
     let rig = Rig::new(spec.plant.clone(), spec.effects).map_err(SimError::Effects)?;
-    let mut sensors = closed_loop::sensors(spec.sensors, spec.seed, &spec.effects, dt);
+    let mut sensors = closed_loop::sensors(spec.sensors, spec.seed, &spec.effects, tick_s);
     let timing = Timing {
         dt_s: dt,
-        steps_per_tick: 1,
-        ticks: scenario.n_steps(dt),
+        steps_per_tick: per_tick,
+        ticks: scenario.n_steps(tick_s),
     };
     let mut logger = Logger {
         log_every,
         nominal: spec.effects.is_none(),
-        rows: Vec::with_capacity((timing.ticks / log_every) as usize),
+        rows: Vec::with_capacity((timing.ticks * per_tick / log_every) as usize),
         hook,
     };
     let controller = match source {

@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use dca_app::settings::BOARD_DT_S;
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
 use crate::io::num::Num;
@@ -36,6 +37,8 @@ pub struct RunRequest {
     pub seed: Option<u64>,
     /// Plant step, s (default 1e-4).
     pub dt_s: Option<f64>,
+    /// The controller's tick, s (default the board's, 1e-3; `--control-tick`).
+    pub control_tick_s: Option<f64>,
     /// Effects, `name` or `name:param=value,...` (added to the scenario file's).
     pub effects: Vec<String>,
     /// A TOML file of the rig's physical parameters (`--plant`; it replaces
@@ -163,7 +166,7 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         None if scenario.is_open_loop() => ControllerKind::MpcEso,
         None => return Err(RequestError::NoController),
     };
-    let controller = match (&req.config, &file_cfg) {
+    let mut controller = match (&req.config, &file_cfg) {
         (Some(arg), _) => match &config_file {
             Some(f) => f.resolve(kind, arg)?,
             None => config_from_arg(arg, kind)?,
@@ -171,6 +174,8 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         (None, Some(c)) => c.resolve(kind, file)?,
         (None, None) => ControllerConfig::preset(Preset::Paper, kind),
     };
+    // The board's tick unless a study asks for another (checked by the run).
+    controller.base_dt_s = req.control_tick_s.unwrap_or(BOARD_DT_S);
     let rig = match &req.plant {
         Some(path) => read_plant_file(Path::new(path))?,
         None => plant_sec.plant_params(file)?,
@@ -366,6 +371,10 @@ pub fn log_meta_with(
         ("dt_s", spec.dt_s.to_string()),
     ]
     .into_iter()
+    .chain(
+        (!spec.scenario.is_open_loop())
+            .then(|| ("control_tick_s", spec.controller.base_dt_s.to_string())),
+    )
     .chain(params::columns(spec.plant.params(), drawn, false))
     .chain(params::columns(&spec.controller.plant, &[], true))
     .chain(std::iter::once((

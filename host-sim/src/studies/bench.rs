@@ -9,6 +9,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
+use dca_app::settings::BOARD_DT_S;
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use rayon::prelude::*;
 
@@ -43,7 +44,10 @@ fn best_of<F: FnMut() -> f64>(reps: usize, mut f: F) -> f64 {
 fn spec(scenario: &str, kind: ControllerKind, hose: HoseModel, dt_s: f64) -> RunSpec {
     RunSpec {
         scenario: Scenario::by_name(scenario).expect("nominal scenario"),
-        controller: ControllerConfig::preset(Preset::Paper, kind),
+        controller: ControllerConfig {
+            base_dt_s: BOARD_DT_S,
+            ..ControllerConfig::preset(Preset::Paper, kind)
+        },
         plant: Plant::new(dca_core::params::PlantParams::NOMINAL, hose),
         effects: Default::default(),
         sensors: SensorMode::Ideal,

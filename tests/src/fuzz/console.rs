@@ -17,8 +17,9 @@
 //! * every image the console stores loads back to the same settings, and a
 //!   `load` from an intact flash gives back what was stored.
 
-use dca_app::console::{Console, Edit, LineEditor, LineError, Status, Target, MAX_LINE};
-use dca_app::settings::{Settings, IMAGE_LEN, PARAMS};
+use dca_app::console::{Console, Edit, LineEditor, LineError, Output, Status, Target, MAX_LINE};
+use dca_app::record::{PackedRow, RecordError, RecordInfo, RecordState};
+use dca_app::settings::{Calibration, Settings, IMAGE_LEN, PARAMS};
 use dca_app::supervisor::{ControlLoop, Refused};
 use dca_core::controller::{Controller, Sample};
 
@@ -89,6 +90,7 @@ struct Model {
     applied: u32,
     plan: Plan,
     ticks: u64,
+    record: RecordState,
 }
 
 /// Everything a refused command must leave as it was.
@@ -122,6 +124,7 @@ impl Model {
             applied: 0,
             plan,
             ticks: 0,
+            record: RecordState::Off,
         }
     }
 
@@ -242,6 +245,55 @@ impl Target for Model {
     fn echo(&mut self, on: bool) {
         self.echo = on;
     }
+    // The model's record buffer holds 100 rows and never takes one (its
+    // ticks are not control ticks): `record` arms and reports, `dump`
+    // answers that nothing was recorded (the dump's frames are tested in
+    // dca-app's console tests).
+    fn record_arm(&mut self, rows: u32, _: &Calibration, _: u8) -> Result<(), RecordError> {
+        if rows == 0 || rows > 100 {
+            return Err(RecordError::Length);
+        }
+        self.record = RecordState::Armed;
+        Ok(())
+    }
+    fn record_off(&mut self) {
+        self.record = RecordState::Off;
+    }
+    fn record_end(&mut self) {
+        if self.record == RecordState::Armed {
+            self.record = RecordState::Done;
+        }
+    }
+    fn record_info(&mut self) -> RecordInfo {
+        RecordInfo {
+            state: self.record,
+            capacity: 100,
+            ..RecordInfo::default()
+        }
+    }
+    fn record_rows(&mut self, _: u32, _: &mut [PackedRow]) -> usize {
+        0
+    }
+}
+
+/// A reply; the model never dumps a record, so it is text only.
+#[derive(Default)]
+struct Reply(String);
+
+impl std::fmt::Write for Reply {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.0.push_str(s);
+        Ok(())
+    }
+}
+
+impl Output for Reply {
+    fn write_bytes(&mut self, bytes: &[u8]) {
+        panic!(
+            "the model has no record, yet {} bytes of a dump were sent",
+            bytes.len()
+        );
+    }
 }
 
 /// What the editor should answer to a byte (the reference model's view).
@@ -345,7 +397,7 @@ fn check_settings(console: &Console, model: &Model, line: &str) {
     let s = console.settings();
     for p in &PARAMS {
         let v = p.get(s);
-        let (lo, hi) = (p.min.value(), p.max.value());
+        let (lo, hi) = (p.min, p.max);
         assert!(
             v >= lo && v <= hi,
             "{line:?}: {} = {v:e} is outside [{lo:e}, {hi:e}]",
@@ -373,7 +425,7 @@ pub fn console(data: &[u8]) {
     let mut shadow = Shadow::default();
     // What a `load` from an intact flash must give back.
     let mut in_flash: Option<Settings> = plan.preload.then(Settings::default);
-    let mut reply = String::new();
+    let mut out = Reply::default();
     for (i, &c) in typed.iter().enumerate() {
         if plan.overrun == Some(i % 64) {
             editor.overrun();
@@ -381,16 +433,17 @@ pub fn console(data: &[u8]) {
         }
         let want = shadow.push(c);
         let edit = editor.push(c);
-        reply.clear();
+        out.0.clear();
         match edit {
             Edit::None => assert_eq!(want, Want::None, "byte {i} ({c:#04x})"),
             Edit::Echo(e) => assert_eq!(want, Want::Echo(e), "byte {i} ({c:#04x})"),
             Edit::Erase => assert_eq!(want, Want::Erase, "byte {i} ({c:#04x})"),
             Edit::Bad(e) => {
                 assert_eq!(want, Want::Bad(e), "byte {i} ({c:#04x})");
-                console.reject(e, &mut reply);
-                assert!(!check_reply("<refused line>", &reply));
-                assert_eq!(reply, format!("error: {}\r\n", e.as_str()));
+                console.reject(e, &mut out);
+                let reply = &out.0;
+                assert!(!check_reply("<refused line>", reply));
+                assert_eq!(*reply, format!("error: {}\r\n", e.as_str()));
             }
             Edit::Line(l) => {
                 assert_eq!(
@@ -401,8 +454,9 @@ pub fn console(data: &[u8]) {
                 let line = l.to_string();
                 let before = model.snapshot(&console);
                 model.stored = None;
-                console.execute(&line, &mut model, &mut reply);
-                let ok = check_reply(&line, &reply);
+                console.execute(&line, &mut model, &mut out);
+                let reply = &out.0;
+                let ok = check_reply(&line, reply);
                 if !ok {
                     assert_eq!(
                         model.snapshot(&console),

@@ -28,7 +28,7 @@ fn check(img: &[u8]) {
     let Ok((s, _)) = r else { return };
     for p in &PARAMS {
         let v = p.get(&s);
-        let (lo, hi) = (p.min.value(), p.max.value());
+        let (lo, hi) = (p.min, p.max);
         assert!(
             v >= lo && v <= hi,
             "accepted image: {} = {v:e} is outside [{lo:e}, {hi:e}]",
@@ -56,7 +56,7 @@ fn check(img: &[u8]) {
 /// Values that probe the range checks of parameter `p`.
 fn probe(b: &mut Bytes<'_>, k: usize) -> f64 {
     let p = &PARAMS[k % PARAMS.len()];
-    let (lo, hi) = (p.min.value(), p.max.value());
+    let (lo, hi) = (p.min, p.max);
     let pick = b.u8();
     let edge = match pick % 4 {
         0 => lo,

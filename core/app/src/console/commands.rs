@@ -8,8 +8,10 @@
 use core::fmt::Write;
 
 use super::{
-    int, kv, num, write_faults, CmdError, Console, Target, MAX_DECIMATION, MIN_DECIMATION,
+    int, kv, num, write_faults, CmdError, Console, Output, Target, MAX_DECIMATION, MIN_DECIMATION,
 };
+use crate::frame::{self, MAX_FRAME_LEN};
+use crate::record::{RecordChunk, RecordError, CHUNK_ROWS, RECORD_DT_S};
 use crate::settings::{self, Settings, SettingsError, IMAGE_LEN};
 use crate::supervisor::State;
 use crate::text::{parse_f64, parse_u32};
@@ -38,6 +40,8 @@ enum Cmd {
     Clear,
     Hil,
     Echo,
+    Record,
+    Dump,
 }
 
 /// One console command.
@@ -94,7 +98,7 @@ const fn c(
 }
 
 /// Every command, in the order `help` lists them.
-pub static COMMANDS: [Command; 20] = [
+pub static COMMANDS: [Command; 22] = [
     c("help", "", "list the commands", 0, 0, Cmd::Help),
     c(
         "ping",
@@ -206,6 +210,22 @@ pub static COMMANDS: [Command; 20] = [
         Cmd::Hil,
     ),
     c("echo", "on|off", "echo typed characters", 1, 0, Cmd::Echo),
+    c(
+        "record",
+        "[seconds|off]",
+        "record every control tick for S s from the next motion (alone: its state)",
+        0,
+        1,
+        Cmd::Record,
+    ),
+    c(
+        "dump",
+        "",
+        "end the record and send it as binary frames (host-sim console --capture)",
+        0,
+        0,
+        Cmd::Dump,
+    ),
 ];
 
 /// The words after the command: the first two, and how many there were (up to
@@ -232,7 +252,7 @@ fn on_off(arg: Option<&str>, cmd: &'static Command) -> Result<bool, CmdError> {
 impl Console {
     /// Parse the line, check its argument count against the table, and run
     /// the command's handler.
-    pub(super) fn run<T: Target, W: Write>(
+    pub(super) fn run<T: Target, W: Output>(
         &mut self,
         line: &str,
         target: &mut T,
@@ -253,7 +273,7 @@ impl Console {
         self.dispatch(cmd, args, target, out)
     }
 
-    fn dispatch<T: Target, W: Write>(
+    fn dispatch<T: Target, W: Output>(
         &mut self,
         cmd: &'static Command,
         args: Args<'_>,
@@ -287,6 +307,8 @@ impl Console {
             Cmd::Clear => target.clear()?,
             Cmd::Hil => target.hil(on_off(args.a1, cmd)?)?,
             Cmd::Echo => target.echo(on_off(args.a1, cmd)?),
+            Cmd::Record => self.record(args.a1, target, out)?,
+            Cmd::Dump => dump(target, out)?,
         }
         Ok(())
     }
@@ -366,6 +388,46 @@ impl Console {
         self.apply(s, &c, target)
     }
 
+    /// `record S`, `record off`, or the record's state.
+    fn record<T: Target, W: Write>(
+        &self,
+        arg: Option<&str>,
+        target: &mut T,
+        out: &mut W,
+    ) -> Result<(), CmdError> {
+        match arg {
+            None => {
+                let i = target.record_info();
+                let _ = out.write_str("record=");
+                let _ = out.write_str(i.state.name());
+                let _ = out.write_str(" rows=");
+                int(out, u64::from(i.rows));
+                let _ = out.write_str(" of ");
+                int(out, u64::from(i.wanted));
+                let _ = out.write_str(" capacity=");
+                int(out, u64::from(i.capacity));
+                let _ = out.write_str(" rows (1 ms each)\r\n");
+            }
+            Some("off") => target.record_off(),
+            Some(s) => {
+                let rows = libm::round(number(s)? / RECORD_DT_S);
+                let capacity = target.record_info().capacity;
+                if !(rows >= 1.0 && rows <= f64::from(capacity)) {
+                    return Err(CmdError::Record(RecordError::Length));
+                }
+                let s = &self.settings;
+                let kind = ControllerKind::ALL
+                    .iter()
+                    .position(|k| *k == s.controller.kind)
+                    .unwrap_or(0) as u8;
+                target
+                    .record_arm(rows as u32, &s.cal, kind)
+                    .map_err(CmdError::Record)?;
+            }
+        }
+        Ok(())
+    }
+
     fn status<T: Target, W: Write>(&self, target: &mut T, out: &mut W) {
         let st = target.status();
         let state = State::from_u8(st.state).map_or("?", State::name);
@@ -438,6 +500,39 @@ fn telemetry<T: Target>(
         return Err(CmdError::Range("decimation must be in 10..10000"));
     }
     target.telemetry(Some(d));
+    Ok(())
+}
+
+/// `dump`: end the record, answer `dump rows=N frames=F`, then the frames
+/// (crate::record's module documentation).
+fn dump<T: Target, W: Output>(target: &mut T, out: &mut W) -> Result<(), CmdError> {
+    target.record_end();
+    let info = target.record_info();
+    if info.rows == 0 {
+        return Err(CmdError::Record(RecordError::Empty));
+    }
+    let head = info.head;
+    let _ = out.write_str("dump rows=");
+    int(out, u64::from(head.rows));
+    let _ = out.write_str(" frames=");
+    int(out, u64::from(head.frames()));
+    let _ = out.write_str("\r\n");
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    // The head and the chunks always fit a frame (tested): a failed encode
+    // sends nothing, so the reader sees a frame missing.
+    if let Ok(n) = frame::encode(&head, &mut buf) {
+        out.write_bytes(buf.get(..n).unwrap_or(&[]));
+    }
+    for seq in 1..head.frames() {
+        let mut chunk = RecordChunk {
+            seq,
+            ..RecordChunk::default()
+        };
+        target.record_rows((seq - 1) * CHUNK_ROWS as u32, &mut chunk.rows);
+        if let Ok(n) = frame::encode(&chunk, &mut buf) {
+            out.write_bytes(buf.get(..n).unwrap_or(&[]));
+        }
+    }
     Ok(())
 }
 

@@ -21,7 +21,8 @@
 use core::fmt::Write;
 
 use crate::frame::LinkCounters;
-use crate::settings::{ParamKind, Settings, SettingsError};
+use crate::record::{PackedRow, RecordError, RecordInfo};
+use crate::settings::{Calibration, ParamKind, Settings, SettingsError};
 use crate::supervisor::{Faults, Refused};
 use crate::text::Buf;
 use dca_core::controller::Controller;
@@ -98,6 +99,29 @@ pub trait Target {
     fn hil(&mut self, on: bool) -> Result<(), Refused>;
     /// Echo typed characters.
     fn echo(&mut self, on: bool);
+    /// Arm a record of `rows` control ticks packed with `cal` (the earlier
+    /// record is dropped); `controller` is the law's index for the dump.
+    fn record_arm(
+        &mut self,
+        rows: u32,
+        cal: &Calibration,
+        controller: u8,
+    ) -> Result<(), RecordError>;
+    /// Drop the record.
+    fn record_off(&mut self);
+    /// End a record being taken, keeping its rows.
+    fn record_end(&mut self);
+    /// Where the record stands.
+    fn record_info(&mut self) -> RecordInfo;
+    /// Copy recorded rows `first ..` into `out`; the number copied.
+    fn record_rows(&mut self, first: u32, out: &mut [PackedRow]) -> usize;
+}
+
+/// Where the console's replies go: text, and the binary frames of `dump`
+/// (written between the reply's first line and its `ok`).
+pub trait Output: Write {
+    /// Write raw bytes.
+    fn write_bytes(&mut self, bytes: &[u8]);
 }
 
 /// Why a command failed (the text after `error: `).
@@ -120,6 +144,8 @@ pub enum CmdError {
     Line(LineError),
     /// Storage failed.
     Store(&'static str),
+    /// The record refused.
+    Record(RecordError),
 }
 
 impl From<Refused> for CmdError {
@@ -146,6 +172,7 @@ impl CmdError {
             Self::Refused(r) => out.write_str(r.as_str()),
             Self::Line(e) => out.write_str(e.as_str()),
             Self::Store(s) => out.write_str(s),
+            Self::Record(e) => out.write_str(e.as_str()),
         };
     }
 }
@@ -214,7 +241,7 @@ impl Console {
 
     /// Answer one line: zero or more answer lines, then `ok` or `error: ...`,
     /// each ended by CR LF.
-    pub fn execute<T: Target, W: Write>(&mut self, line: &str, target: &mut T, out: &mut W) {
+    pub fn execute<T: Target, W: Output>(&mut self, line: &str, target: &mut T, out: &mut W) {
         match self.run(line, target, out) {
             Ok(()) => {
                 let _ = out.write_str("ok\r\n");

@@ -17,6 +17,14 @@
 //! and its `ok`, retrying with a new token every second; then it turns echo
 //! off. A port that gives no `pong` within [`HANDSHAKE`] is an error naming the
 //! port, its baud rate and what was tried.
+//!
+//! # Binary frames
+//! The reply to `dump` is a line `dump rows=N frames=F`, then F binary frames
+//! (dca_app::record, 0x00-delimited), then `ok`. The reader switches to
+//! frames right after that line and back to lines after the F-th delimiter;
+//! the frames come with the reply ([`Reply::frames`]), unchecked (the caller
+//! decodes them). While frames arrive the reply's deadline moves on with
+//! them, so a dump of any length needs only that bytes keep coming.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -64,6 +72,14 @@ pub fn is_reply_end(line: &str) -> bool {
     line == "ok" || line.starts_with("error:")
 }
 
+/// The number of binary frames that follow a reply line, if it announces
+/// them (`dump rows=N frames=F`).
+pub fn frames_announced(line: &str) -> Option<usize> {
+    let rest = line.strip_prefix("dump rows=")?;
+    let (_, f) = rest.split_once(" frames=")?;
+    f.parse().ok()
+}
+
 /// A complete reply.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Reply {
@@ -71,6 +87,9 @@ pub struct Reply {
     pub lines: Vec<String>,
     /// `ok` or `error: <reason>`.
     pub last: String,
+    /// Binary frames that came with the reply (their bodies, without the
+    /// `0x00` delimiter).
+    pub frames: Vec<Vec<u8>>,
 }
 
 impl Reply {
@@ -93,10 +112,16 @@ impl Reply {
 /// Where the lines that are not replies go (called on the reader thread).
 pub type Sink = Box<dyn FnMut(LineKind, &str) + Send>;
 
+/// What the reader thread passes to a waiting command.
+enum Msg {
+    Line(String),
+    Frame(Vec<u8>),
+}
+
 /// A console connection with its reader thread.
 pub struct ConsoleClient {
     tx: SerialLink,
-    replies: Receiver<Result<String, BoardError>>,
+    replies: Receiver<Result<Msg, BoardError>>,
     sink: Arc<Mutex<Option<Sink>>>,
     stop: Arc<AtomicBool>,
     reader: Option<JoinHandle<()>>,
@@ -126,6 +151,8 @@ impl ConsoleClient {
             .spawn(move || {
                 let mut pending: Vec<u8> = Vec::new();
                 let mut buf = [0u8; 1024];
+                // Binary frames still to come after a `dump` line.
+                let mut frames_due = 0usize;
                 while !stop2.load(Ordering::Relaxed) {
                     let n = match rx.read_some(&mut buf) {
                         Ok(n) => n,
@@ -135,7 +162,22 @@ impl ConsoleClient {
                         }
                     };
                     pending.extend_from_slice(&buf[..n]);
-                    while let Some(i) = pending.iter().position(|b| *b == b'\n') {
+                    loop {
+                        if frames_due > 0 {
+                            let Some(i) = pending.iter().position(|b| *b == 0) else {
+                                break;
+                            };
+                            let mut body: Vec<u8> = pending.drain(..=i).collect();
+                            body.pop();
+                            frames_due -= 1;
+                            if reply_tx.send(Ok(Msg::Frame(body))).is_err() {
+                                return;
+                            }
+                            continue;
+                        }
+                        let Some(i) = pending.iter().position(|b| *b == b'\n') else {
+                            break;
+                        };
                         let raw: Vec<u8> = pending.drain(..=i).collect();
                         let text = String::from_utf8_lossy(&raw);
                         let line = text.trim_end_matches(['\r', '\n']);
@@ -144,7 +186,8 @@ impl ConsoleClient {
                         }
                         match classify(line) {
                             LineKind::Reply => {
-                                if reply_tx.send(Ok(line.to_string())).is_err() {
+                                frames_due = frames_announced(line).unwrap_or(0);
+                                if reply_tx.send(Ok(Msg::Line(line.to_string()))).is_err() {
                                     return;
                                 }
                             }
@@ -217,11 +260,23 @@ impl ConsoleClient {
         })
     }
 
-    /// The next reply line, or `None` once `until` has passed.
+    /// The next reply line (frames skipped), or `None` once `until` has
+    /// passed.
     fn next_reply_line(&mut self, until: Instant) -> Result<Option<String>, BoardError> {
+        loop {
+            match self.next_msg(until)? {
+                Some(Msg::Line(l)) => return Ok(Some(l)),
+                Some(Msg::Frame(_)) => {}
+                None => return Ok(None),
+            }
+        }
+    }
+
+    /// The next line or frame of a reply, or `None` once `until` has passed.
+    fn next_msg(&mut self, until: Instant) -> Result<Option<Msg>, BoardError> {
         let left = until.saturating_duration_since(Instant::now());
         match self.replies.recv_timeout(left) {
-            Ok(Ok(l)) => Ok(Some(l)),
+            Ok(Ok(m)) => Ok(Some(m)),
             Ok(Err(e)) => Err(e),
             Err(RecvTimeoutError::Timeout) => Ok(None),
             Err(RecvTimeoutError::Disconnected) => Err(BoardError::Closed {
@@ -233,15 +288,24 @@ impl ConsoleClient {
     /// Send one command line and wait for its whole reply.
     pub fn command(&mut self, line: &str) -> Result<Reply, BoardError> {
         self.tx.send(format!("{line}\r\n").as_bytes())?;
-        let until = Instant::now() + self.timeout;
+        let mut until = Instant::now() + self.timeout;
         let mut reply = Reply::default();
         loop {
-            let Some(l) = self.next_reply_line(until)? else {
-                return Err(BoardError::NoReply {
-                    port: self.port().to_string(),
-                    command: line.to_string(),
-                    secs: self.timeout.as_secs_f64(),
-                });
+            let l = match self.next_msg(until)? {
+                Some(Msg::Line(l)) => l,
+                Some(Msg::Frame(f)) => {
+                    reply.frames.push(f);
+                    // A long dump: the deadline follows the frames.
+                    until = Instant::now() + self.timeout;
+                    continue;
+                }
+                None => {
+                    return Err(BoardError::NoReply {
+                        port: self.port().to_string(),
+                        command: line.to_string(),
+                        secs: self.timeout.as_secs_f64(),
+                    })
+                }
             };
             if is_reply_end(&l) {
                 reply.last = l;
@@ -309,5 +373,14 @@ mod tests {
             LineKind::Notice
         );
         assert!(is_reply_end("ok") && is_reply_end("error: x") && !is_reply_end("okay"));
+        assert_eq!(frames_announced("dump rows=10 frames=5"), Some(5));
+        for l in [
+            "dump rows=10",
+            "dump frames=5",
+            "record=done rows=3 of 3",
+            "ok",
+        ] {
+            assert_eq!(frames_announced(l), None, "{l}");
+        }
     }
 }

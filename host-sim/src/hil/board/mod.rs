@@ -6,13 +6,17 @@
 //! * [`console`]: the console client: start-up handshake, one reply per
 //!   command, the telemetry stream set apart;
 //! * [`capture`]: a telemetry stream written as a run log;
+//! * [`record`]: the board's own record (`dump`) read and written as a run log;
 //! * [`qemu`]: the emulated firmware on QEMU with its USARTs on ptys;
-//! * [`session`]: `host-sim console`, interactive or from a script.
+//! * [`session`]: `host-sim console`, interactive or from a script;
+//! * [`scope`]: `host-sim console --scope`, the live view in the terminal.
 
 pub mod capture;
 pub mod console;
 pub mod port;
 pub mod qemu;
+pub mod record;
+pub mod scope;
 pub mod session;
 
 /// What went wrong talking to a board.

@@ -43,6 +43,50 @@ impl Default for QemuOptions {
     }
 }
 
+/// How to install the emulator, for error messages.
+pub const QEMU_INSTALL: &str = "install QEMU's Arm system emulator: `sudo apt-get install \
+     qemu-system-arm` (Debian, Ubuntu), `sudo dnf install qemu-system-arm` (Fedora) or `brew \
+     install qemu` (macOS)";
+
+/// The emulator binary `qemu` as it will be started: a path is checked as
+/// given, a bare name is looked up on `PATH`. Called before anything is built,
+/// so that a missing QEMU is reported at once, with how to install it.
+pub fn find_qemu(qemu: &Path) -> Result<PathBuf, BoardError> {
+    let runnable = |p: &Path| {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            p.metadata()
+                .is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+        }
+        #[cfg(not(unix))]
+        {
+            p.is_file()
+        }
+    };
+    let found = if qemu.components().count() > 1 {
+        runnable(qemu).then(|| qemu.to_path_buf())
+    } else {
+        std::env::var_os("PATH").and_then(|path| {
+            std::env::split_paths(&path)
+                .map(|dir| dir.join(qemu))
+                .find(|p| runnable(p))
+        })
+    };
+    found.ok_or_else(|| {
+        BoardError::Emulator(format!(
+            "{} not found{}: the emulated board needs it; {QEMU_INSTALL} (or give --port for a \
+             board)",
+            qemu.display(),
+            if qemu.components().count() > 1 {
+                ""
+            } else {
+                " on PATH"
+            }
+        ))
+    })
+}
+
 /// Why the emulated firmware's ELF could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum ElfError {
@@ -100,13 +144,14 @@ impl Emulator {
     /// Start QEMU on `elf` with both USARTs on ptys; returns once QEMU has
     /// named them.
     pub fn start(elf: &Path, opts: &QemuOptions) -> Result<Self, BoardError> {
+        let qemu = find_qemu(&opts.qemu)?;
         if !elf.exists() {
             return Err(BoardError::Emulator(format!(
                 "no firmware ELF at {} (build it with `cargo fw-qemu`)",
                 elf.display()
             )));
         }
-        let mut child = Command::new(&opts.qemu)
+        let mut child = Command::new(&qemu)
             .args([
                 "-machine",
                 "netduinoplus2",
@@ -123,9 +168,7 @@ impl Emulator {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .map_err(|e| {
-                BoardError::Emulator(format!("cannot start {}: {e}", opts.qemu.display()))
-            })?;
+            .map_err(|e| BoardError::Emulator(format!("cannot start {}: {e}", qemu.display())))?;
         let stdout = child.stdout.take().expect("piped");
         let (tx, rx) = mpsc::channel();
         let mut log: Box<dyn Write + Send> = match &opts.defmt_out {

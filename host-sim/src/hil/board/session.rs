@@ -10,16 +10,20 @@
 //!   come in time.
 //! * `--capture OUT.csv`: the telemetry stream (after `telemetry on`, until
 //!   `telemetry off` or the end of the session) written as a run log; see
-//!   [`super::capture`] for its time step.
+//!   [`super::capture`] for its time step. Where the session issues `dump`,
+//!   OUT.csv is the board's record instead (the last dump), a 1 ms run log
+//!   ([`super::record`]); a dump with a lost or damaged frame fails the
+//!   session.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use super::capture::Capture;
-use super::console::{ConsoleClient, LineKind, Sink, CONSOLE_BAUD};
+use super::console::{ConsoleClient, LineKind, Reply, Sink, CONSOLE_BAUD};
 use super::port::SerialLink;
 use super::qemu::{Emulator, QemuOptions};
+use super::record::BoardRecord;
 use super::BoardError;
 
 /// One step of a console script.
@@ -115,6 +119,9 @@ pub struct SessionOptions {
     pub capture: Option<PathBuf>,
     /// Longest wait for a reply.
     pub timeout: Duration,
+    /// The live view ([`super::scope`]) instead of the plain interactive
+    /// console (not with a script).
+    pub scope: bool,
 }
 
 /// How a session ended.
@@ -130,6 +137,39 @@ pub struct SessionReport {
     pub step_s: Option<f64>,
     /// Why the capture is incomplete or missing, if it is.
     pub capture_problem: Option<String>,
+    /// The last `dump`: the record read, or why it could not be.
+    pub dump: Option<Result<BoardRecord, String>>,
+}
+
+impl SessionReport {
+    /// Count one reply to `line` and show it (text; a dump's frames are
+    /// read, not shown).
+    fn reply(&mut self, line: &str, reply: &Reply) {
+        print!("{}", reply.text());
+        if let Some(note) = self.count(line, reply) {
+            eprintln!("{note}");
+        }
+    }
+
+    /// Count one reply to `line`; a reply to `dump` is read as the board's
+    /// record (see [`BoardRecord::from_reply`]). A note on the dump, if any.
+    pub fn count(&mut self, line: &str, reply: &Reply) -> Option<String> {
+        self.sent += 1;
+        if !reply.is_ok() {
+            self.errors += 1;
+        }
+        let is_dump = line.split_ascii_whitespace().next() == Some("dump");
+        if !(is_dump && reply.is_ok()) {
+            return None;
+        }
+        let r = BoardRecord::from_reply(reply).map_err(|e| e.to_string());
+        let note = match &r {
+            Ok(rec) => format!("record of {} rows (1 ms) received", rec.rows.len()),
+            Err(e) => e.clone(),
+        };
+        self.dump = Some(r);
+        Some(note)
+    }
 }
 
 impl SessionReport {
@@ -173,17 +213,56 @@ pub fn run_session(opts: &SessionOptions) -> Result<SessionReport, BoardError> {
             client.set_sink(Some(sink(capture.clone(), |l| println!("{l}"))));
             run_script(&mut client, steps)?
         }
+        None if opts.scope => {
+            let mut report = SessionReport::default();
+            super::scope::run_scope(&mut client, capture.clone(), |line, reply| {
+                report.count(line, reply)
+            })?;
+            report
+        }
         None => run_interactive(&mut client, capture.clone())?,
     };
     client.set_sink(None);
-    if let (Some(path), Some(c)) = (&opts.capture, &capture) {
-        let c = c.lock().map(|c| c.clone()).unwrap_or_default();
-        finish_capture(&c, path, &port, &mut report);
+    match (&opts.capture, &capture, report.dump.take()) {
+        (Some(path), _, Some(dump)) => finish_record(dump, path, &port, &mut report),
+        (Some(path), Some(c), None) => {
+            let c = c.lock().map(|c| c.clone()).unwrap_or_default();
+            finish_capture(&c, path, &port, &mut report);
+        }
+        (None, _, Some(Err(e))) => report.capture_problem = Some(e),
+        _ => {}
     }
     if let Some(e) = emulator {
         e.quit(&mut client)?;
     }
     Ok(report)
+}
+
+/// Write the session's last dump as the capture.
+fn finish_record(
+    dump: Result<BoardRecord, String>,
+    path: &Path,
+    port: &str,
+    report: &mut SessionReport,
+) {
+    let rec = match dump {
+        Ok(r) => r,
+        Err(e) => {
+            report.capture_problem = Some(format!("the dump is not whole: {e}"));
+            return;
+        }
+    };
+    if let Err(e) = rec.write(path, &[("port", port.to_string())]) {
+        report.capture_problem = Some(format!("{}: {e}", path.display()));
+        return;
+    }
+    report.rows = rec.rows.len();
+    report.step_s = Some(dca_app::record::RECORD_DT_S);
+    eprintln!(
+        "the board's record: {} rows, step 0.001 s -> {}",
+        rec.rows.len(),
+        path.display()
+    );
 }
 
 fn finish_capture(c: &Capture, path: &Path, port: &str, report: &mut SessionReport) {
@@ -224,11 +303,7 @@ fn run_script(client: &mut ConsoleClient, steps: &[Step]) -> Result<SessionRepor
             Step::Send(line) => {
                 println!("> {line}");
                 let reply = client.command(line)?;
-                print!("{}", reply.text());
-                report.sent += 1;
-                if !reply.is_ok() {
-                    report.errors += 1;
-                }
+                report.reply(line, &reply);
             }
         }
     }
@@ -276,13 +351,7 @@ fn run_interactive(
         }
         let _ = rl.add_history_entry(line);
         match client.command(line) {
-            Ok(reply) => {
-                print!("{}", reply.text());
-                report.sent += 1;
-                if !reply.is_ok() {
-                    report.errors += 1;
-                }
-            }
+            Ok(reply) => report.reply(line, &reply),
             Err(e @ BoardError::NoReply { .. }) => {
                 eprintln!("{e}");
                 report.errors += 1;

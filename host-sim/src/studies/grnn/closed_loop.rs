@@ -6,6 +6,7 @@
 
 use std::time::Instant;
 
+use dca_app::settings::BOARD_DT_S;
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use dca_core::params::PlantParams;
 use rayon::prelude::*;
@@ -56,7 +57,10 @@ pub fn stepload_trace(plant: Plant, dt_s: f64) -> Result<Trace, SimError> {
 fn stepload_defaults() -> RunSpec {
     RunSpec {
         scenario: Scenario::by_name("stepload").expect("nominal scenario"),
-        controller: ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso),
+        controller: ControllerConfig {
+            base_dt_s: BOARD_DT_S,
+            ..ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso)
+        },
         plant: Plant::nominal(),
         sensors: SensorMode::Ideal,
         seed: 0,
