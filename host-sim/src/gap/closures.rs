@@ -533,244 +533,312 @@ pub const ROUGHNESS: f64 = 0.01;
 /// The columns of closure `c` on one run: each basis function's response
 /// in the normalised block vector.
 pub fn columns(c: Closure, run: &RunData, plant: &Plant, knots: &Knots) -> Vec<Vec<f64>> {
+    match (c.site, c.dep) {
+        (Site::Parameters, _) => parameter_columns(run, plant),
+        (Site::Servo, _) => servo_columns(run, plant),
+        (Site::CouplingIn, Dependence::ForceHistory) => coupling_play_columns(run, plant),
+        (Site::CouplingIn, _) => coupling_tent_columns(run, plant),
+        (Site::Between, _) => leak_columns(run, plant),
+        (Site::Line1 | Site::Line2, dep) => line_columns(c.site == Site::Line2, dep, run, plant),
+        (Site::Force, Dependence::Speed) => friction_columns(run, plant),
+        (Site::Force, _) => {
+            let fs = tents_linear(&run.sig.xo, &knots.position);
+            let build = |f: Vec<f64>| Terms {
+                force_n: Some(f),
+                ..Terms::default()
+            };
+            responses(run, plant, &build, fs, 10.0)
+        }
+        (Site::Sensor(ch), dep) => sensor_columns(ch, dep, run, plant, knots),
+        (Site::Clock, _) => clock_columns(run),
+    }
+}
+
+/// The responses of the terms `build` makes of each basis function in
+/// `fs`, each scaled by `eps` before the replay and by `1 / eps` after.
+fn responses(
+    run: &RunData,
+    plant: &Plant,
+    build: &dyn Fn(Vec<f64>) -> Terms,
+    fs: Vec<Vec<f64>>,
+    eps: f64,
+) -> Vec<Vec<f64>> {
+    fs.into_iter()
+        .map(|f| {
+            let f: Vec<f64> = f.iter().map(|x| x * eps).collect();
+            let t = build(f);
+            run.response(&with_terms_over(&run.sig, plant, &t, &run.base), eps)
+        })
+        .collect()
+}
+
+/// The piston's hydraulic force at each row, N.
+fn piston_force_n(s: &Signals, plant: &Plant) -> Vec<f64> {
+    (0..s.len())
+        .map(|k| plant.piston_force_n(s.p1[k], s.p2[k]))
+        .collect()
+}
+
+/// The mean of `v` over the run's still start.
+fn still_mean(v: &[f64], still: usize) -> f64 {
+    let n = still.min(v.len());
+    v[..n].iter().sum::<f64>() / n.max(1) as f64
+}
+
+/// Each nominal parameter 5 % off, one at a time.
+fn parameter_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    (0..7)
+        .map(|i| {
+            let mut a = [1.0; 7];
+            a[i] = 1.05f64;
+            let ratios = ParameterRatios::from_array(a);
+            let pl = plant.with_params(ratios.apply(plant.params()));
+            run.response(&residuals(&run.sig, &pl), 0.05f64.ln_1p())
+        })
+        .collect()
+}
+
+/// The servo table's cells ([`servo_cells`]) at each row: the acceleration
+/// the nominal loop asks from the interval's mean speed, the load and the
+/// speed.
+fn servo_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
     let s = &run.sig;
     let p = plant.params();
-    let h = s.h_s;
-    let n = s.len();
-    let term = |build: &dyn Fn(Vec<f64>) -> Terms, f: Vec<f64>, eps: f64| {
-        let f: Vec<f64> = f.iter().map(|x| x * eps).collect();
-        let t = build(f);
-        run.response(&with_terms_over(s, plant, &t, &run.base), eps)
-    };
-    let many = |build: &dyn Fn(Vec<f64>) -> Terms, fs: Vec<Vec<f64>>, eps: f64| {
-        fs.into_iter()
-            .map(|f| term(build, f, eps))
-            .collect::<Vec<_>>()
-    };
-    let f_piston: Vec<f64> = (0..n)
-        .map(|k| plant.piston_force_n(s.p1[k], s.p2[k]))
+    let (h, n) = (s.h_s, s.len());
+    let f_piston = piston_force_n(s, plant);
+    let vbar: Vec<f64> = (0..n)
+        .map(|k| {
+            if k + 1 < n {
+                (s.xi[k + 1] - s.xi[k]) / h
+            } else {
+                0.0
+            }
+        })
         .collect();
-    match (c.site, c.dep) {
-        (Site::Parameters, _) => (0..7)
-            .map(|i| {
-                let mut a = [1.0; 7];
-                a[i] = 1.05f64;
-                let ratios = ParameterRatios::from_array(a);
-                let pl = plant.with_params(ratios.apply(plant.params()));
-                run.response(&residuals(s, &pl), 0.05f64.ln_1p())
-            })
-            .collect(),
-        (Site::Servo, _) => {
-            // The table's cells ([`servo_cells`]) at each row: the
-            // acceleration the nominal loop asks from the interval's mean
-            // speed, the load and the speed.
-            let vbar: Vec<f64> = (0..n)
-                .map(|k| {
-                    if k + 1 < n {
-                        (s.xi[k + 1] - s.xi[k]) / h
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            let phi: Vec<[f64; SERVO_CELLS]> = (0..n)
-                .map(|k| {
-                    let a = (s.vc[k].clamp(-p.v_max_mps, p.v_max_mps) - vbar[k]) / p.tau_m_s;
-                    servo_cells(a, f_piston[k], vbar[k])
-                })
-                .collect();
-            let fs: Vec<Vec<f64>> = (0..SERVO_CELLS)
-                .map(|j| phi.iter().map(|f| f[j]).collect())
-                .collect();
-            let build = |f: Vec<f64>| Terms {
-                servo_mps2: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 1.0)
-        }
-        (Site::CouplingIn, Dependence::ForceHistory) => {
-            // A spring beside plays of several widths: a coupling whose
-            // deflection lags the force by friction.
-            let f0 = f_piston[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
-            let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| y - f0).collect() };
-            let fs: Vec<Vec<f64>> = std::iter::once(rel(f_piston.clone()))
-                .chain(
-                    [10.0, 30.0, 100.0, 300.0, 1000.0]
-                        .iter()
-                        .map(|r| rel(play(&f_piston, *r))),
-                )
-                .collect();
-            let build = |f: Vec<f64>| Terms {
-                coupling_m: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 1e-8)
-        }
-        (Site::CouplingIn, _) => {
-            // At the coupling's general family's knots (its start, see
-            // [`super::diagnose`]).
-            let fs = odd_tents(&f_piston, &SCREW_FORCES_N);
-            let build = |f: Vec<f64>| Terms {
-                coupling_m: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 1e-5)
-        }
-        (Site::Between, _) => {
-            let dp: Vec<f64> = (0..n).map(|k| s.p1[k] - s.p2[k]).collect();
-            let mut fs: Vec<Vec<f64>> = odd_tents(&dp, &[0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6])
-                .into_iter()
-                .map(|f| integral(&f, h))
-                .collect();
-            let level: Vec<f64> = (0..n).map(|k| dp[k] * (s.p1[k] + s.p2[k]) / 2e12).collect();
-            fs.push(integral(&level, h));
-            let build = |f: Vec<f64>| Terms {
-                leak_m3: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 1e-7)
-        }
-        (Site::Line1 | Site::Line2, dep) => {
-            let j = usize::from(c.site == Site::Line2);
-            let pj = if j == 0 { &s.p1 } else { &s.p2 };
-            let vol: Vec<f64> = (0..n)
-                .map(|k| {
-                    let (v1, v2) = plant.line_volumes(s.xi[k], s.xo[k]);
-                    if j == 0 {
-                        v1
-                    } else {
-                        v2
-                    }
-                })
-                .collect();
-            let hose = p.hose;
-            let lp: Vec<f64> = pj.iter().map(|x| hose.log_pressure(*x)).collect();
-            let lp0 = lp[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
-            let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| (y - lp0) * 1e-13).collect() };
-            let p0 = pj[..s.still.min(n)].iter().sum::<f64>() / s.still.min(n).max(1) as f64;
-            // A compressibility of any shape over the pressure, times the
-            // line's oil volume, taken up along the run.
-            let static_part = || -> Vec<Vec<f64>> {
-                tents(pj, &LINE_TENTS_PA)
-                    .into_iter()
-                    .map(|w| compressed(pj, &w, &vol).iter().map(|v| v / 1e9).collect())
-                    .collect()
-            };
-            let fs: Vec<Vec<f64>> = match dep {
-                Dependence::Pressure => static_part(),
-                // The static compressibility beside plays of several widths
-                // on the pressure (a Prandtl-Ishlinskii loop): the loop
-                // must explain what a static law cannot.
-                Dependence::PressureHistory => static_part()
-                    .into_iter()
-                    .chain(
-                        [1e4, 3e4, 1e5, 3e5, 1e6]
-                            .iter()
-                            .map(|r| play(pj, *r).iter().map(|y| (y - p0) * 1e-13).collect()),
-                    )
-                    .collect(),
-                // A flow out of the line of any shape over its pressure,
-                // integrated into the volume lost.
-                Dependence::Outflow => tents(pj, &[0.0, 1e6, 2e6, 3e6, 4e6, 6e6])
-                    .into_iter()
-                    .map(|q| integral(&q, h).iter().map(|v| v * 1e-7).collect())
-                    .collect(),
-                _ => [0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0]
+    let phi: Vec<[f64; SERVO_CELLS]> = (0..n)
+        .map(|k| {
+            let a = (s.vc[k].clamp(-p.v_max_mps, p.v_max_mps) - vbar[k]) / p.tau_m_s;
+            servo_cells(a, f_piston[k], vbar[k])
+        })
+        .collect();
+    let fs: Vec<Vec<f64>> = (0..SERVO_CELLS)
+        .map(|j| phi.iter().map(|f| f[j]).collect())
+        .collect();
+    let build = |f: Vec<f64>| Terms {
+        servo_mps2: Some(f),
+        ..Terms::default()
+    };
+    responses(run, plant, &build, fs, 1.0)
+}
+
+/// A spring beside plays of several widths: a coupling whose deflection
+/// lags the force by friction.
+fn coupling_play_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    let f_piston = piston_force_n(&run.sig, plant);
+    let f0 = still_mean(&f_piston, run.sig.still);
+    let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| y - f0).collect() };
+    let fs: Vec<Vec<f64>> = std::iter::once(rel(f_piston.clone()))
+        .chain(
+            [10.0, 30.0, 100.0, 300.0, 1000.0]
+                .iter()
+                .map(|r| rel(play(&f_piston, *r))),
+        )
+        .collect();
+    let build = |f: Vec<f64>| Terms {
+        coupling_m: Some(f),
+        ..Terms::default()
+    };
+    responses(run, plant, &build, fs, 1e-8)
+}
+
+/// The coupling at its general family's knots (its start, see
+/// [`super::diagnose`]).
+fn coupling_tent_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    let fs = odd_tents(&piston_force_n(&run.sig, plant), &SCREW_FORCES_N);
+    let build = |f: Vec<f64>| Terms {
+        coupling_m: Some(f),
+        ..Terms::default()
+    };
+    responses(run, plant, &build, fs, 1e-5)
+}
+
+/// A flow between the lines of any shape over their pressure difference,
+/// and a share that grows with their mean pressure, integrated.
+fn leak_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    let s = &run.sig;
+    let (h, n) = (s.h_s, s.len());
+    let dp: Vec<f64> = (0..n).map(|k| s.p1[k] - s.p2[k]).collect();
+    let mut fs: Vec<Vec<f64>> = odd_tents(&dp, &[0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6])
+        .into_iter()
+        .map(|f| integral(&f, h))
+        .collect();
+    let level: Vec<f64> = (0..n).map(|k| dp[k] * (s.p1[k] + s.p2[k]) / 2e12).collect();
+    fs.push(integral(&level, h));
+    let build = |f: Vec<f64>| Terms {
+        leak_m3: Some(f),
+        ..Terms::default()
+    };
+    responses(run, plant, &build, fs, 1e-7)
+}
+
+/// A volume taken up or lost by line 1 (or line 2 where `line2`), by its
+/// dependence: a compressibility, a hysteresis loop, an outflow or a lag.
+fn line_columns(line2: bool, dep: Dependence, run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    let s = &run.sig;
+    let (h, n) = (s.h_s, s.len());
+    let j = usize::from(line2);
+    let pj = if j == 0 { &s.p1 } else { &s.p2 };
+    let vol: Vec<f64> = (0..n)
+        .map(|k| {
+            let (v1, v2) = plant.line_volumes(s.xi[k], s.xo[k]);
+            if j == 0 {
+                v1
+            } else {
+                v2
+            }
+        })
+        .collect();
+    let hose = plant.params().hose;
+    let lp: Vec<f64> = pj.iter().map(|x| hose.log_pressure(*x)).collect();
+    let lp0 = still_mean(&lp, s.still);
+    let rel = |v: Vec<f64>| -> Vec<f64> { v.iter().map(|y| (y - lp0) * 1e-13).collect() };
+    let p0 = still_mean(pj, s.still);
+    // A compressibility of any shape over the pressure, times the line's
+    // oil volume, taken up along the run.
+    let static_part = || -> Vec<Vec<f64>> {
+        tents(pj, &LINE_TENTS_PA)
+            .into_iter()
+            .map(|w| compressed(pj, &w, &vol).iter().map(|v| v / 1e9).collect())
+            .collect()
+    };
+    let fs: Vec<Vec<f64>> = match dep {
+        Dependence::Pressure => static_part(),
+        // The static compressibility beside plays of several widths on the
+        // pressure (a Prandtl-Ishlinskii loop): the loop must explain what a
+        // static law cannot.
+        Dependence::PressureHistory => static_part()
+            .into_iter()
+            .chain(
+                [1e4, 3e4, 1e5, 3e5, 1e6]
                     .iter()
-                    .map(|tau| rel(lagged(&lp, h, *tau)))
-                    .collect(),
-            };
-            let build = |f: Vec<f64>| {
-                let mut t = Terms::default();
-                t.volume_m3[j] = Some(f);
-                t
-            };
-            many(&build, fs, 1.0)
-        }
-        (Site::Force, Dependence::Speed) => {
-            let v = speed(&s.xo, h);
-            let mut fs = odd_tents(&v, &[0.0, 1e-3, 3e-3, 10e-3, 30e-3, 100e-3]);
-            fs.push(
-                (0..n)
-                    .map(|k| (s.p1[k] + s.p2[k]) / 1e6 * (v[k] / 1e-3).clamp(-1.0, 1.0))
-                    .collect(),
-            );
-            let build = |f: Vec<f64>| Terms {
-                force_n: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 10.0)
-        }
-        (Site::Force, _) => {
-            let fs = tents_linear(&s.xo, &knots.position);
-            let build = |f: Vec<f64>| Terms {
-                force_n: Some(f),
-                ..Terms::default()
-            };
-            many(&build, fs, 10.0)
-        }
-        (Site::Sensor(ch), dep) => {
-            let i = ch.index();
-            let get = |s: &Signals| -> Vec<f64> {
-                match ch {
-                    CalChannel::Xo => s.xo.clone(),
-                    CalChannel::Xi => s.xi.clone(),
-                    CalChannel::P1 => s.p1.clone(),
-                    CalChannel::P2 => s.p2.clone(),
-                    CalChannel::Ft => s.ft.clone(),
-                }
-            };
-            let y = get(s);
-            let eps = [1e-5, 1e-6, 1e4, 1e4, 10.0][i];
-            let fs: Vec<Vec<f64>> = match dep {
-                Dependence::Signal => tents_linear(&y, &knots.sensor[i]),
-                _ => {
-                    let taus: &[f64] = if h < 0.005 {
-                        &[1e-3, 3e-3, 10e-3, 30e-3]
-                    } else {
-                        &[10e-3, 30e-3]
-                    };
-                    taus.iter()
-                        .map(|tau| {
-                            lagged(&y, h, *tau)
-                                .iter()
-                                .zip(&y)
-                                .map(|(a, b)| (a - b) / eps)
-                                .collect()
-                        })
-                        .collect()
-                }
-            };
-            fs.into_iter()
-                .map(|f| {
-                    let mut t = s.clone();
-                    let v: Vec<f64> = y.iter().zip(&f).map(|(a, b)| a - eps * b).collect();
-                    match ch {
-                        CalChannel::Xo => t.xo = v,
-                        CalChannel::Xi => t.xi = v,
-                        CalChannel::P1 => t.p1 = v,
-                        CalChannel::P2 => t.p2 = v,
-                        CalChannel::Ft => t.ft = v,
-                    }
-                    run.response(&residuals(&t, plant), eps)
-                })
-                .collect()
-        }
-        (Site::Clock, _) => {
-            let t: Vec<f64> = (0..n).map(|k| k as f64 * h).collect();
-            let nb = run.blocks();
-            (1..4)
-                .map(|r| {
-                    let mut col = vec![0.0; 4 * nb];
-                    let b = block_means(&t, run.block);
-                    for (k, v) in b.iter().enumerate() {
-                        col[r * nb + k] = *v;
-                    }
-                    col
-                })
-                .collect()
-        }
+                    .map(|r| play(pj, *r).iter().map(|y| (y - p0) * 1e-13).collect()),
+            )
+            .collect(),
+        // A flow out of the line of any shape over its pressure, integrated
+        // into the volume lost.
+        Dependence::Outflow => tents(pj, &[0.0, 1e6, 2e6, 3e6, 4e6, 6e6])
+            .into_iter()
+            .map(|q| integral(&q, h).iter().map(|v| v * 1e-7).collect())
+            .collect(),
+        _ => [0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0]
+            .iter()
+            .map(|tau| rel(lagged(&lp, h, *tau)))
+            .collect(),
+    };
+    let build = |f: Vec<f64>| {
+        let mut t = Terms::default();
+        t.volume_m3[j] = Some(f);
+        t
+    };
+    responses(run, plant, &build, fs, 1.0)
+}
+
+/// A force against the output's speed of any shape, and a share that grows
+/// with the lines' pressure.
+fn friction_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
+    let s = &run.sig;
+    let v = speed(&s.xo, s.h_s);
+    let mut fs = odd_tents(&v, &[0.0, 1e-3, 3e-3, 10e-3, 30e-3, 100e-3]);
+    fs.push(
+        (0..s.len())
+            .map(|k| (s.p1[k] + s.p2[k]) / 1e6 * (v[k] / 1e-3).clamp(-1.0, 1.0))
+            .collect(),
+    );
+    let build = |f: Vec<f64>| Terms {
+        force_n: Some(f),
+        ..Terms::default()
+    };
+    responses(run, plant, &build, fs, 10.0)
+}
+
+/// A channel's recorded values.
+fn channel_of(s: &Signals, ch: CalChannel) -> &Vec<f64> {
+    match ch {
+        CalChannel::Xo => &s.xo,
+        CalChannel::Xi => &s.xi,
+        CalChannel::P1 => &s.p1,
+        CalChannel::P2 => &s.p2,
+        CalChannel::Ft => &s.ft,
     }
+}
+
+/// A sensor's reading off by a static map of any shape (`Signal`) or by
+/// lags of several time constants: each basis function replayed as the
+/// channel's reading moved by it.
+fn sensor_columns(
+    ch: CalChannel,
+    dep: Dependence,
+    run: &RunData,
+    plant: &Plant,
+    knots: &Knots,
+) -> Vec<Vec<f64>> {
+    let s = &run.sig;
+    let h = s.h_s;
+    let i = ch.index();
+    let y = channel_of(s, ch).clone();
+    let eps = [1e-5, 1e-6, 1e4, 1e4, 10.0][i];
+    let fs: Vec<Vec<f64>> = match dep {
+        Dependence::Signal => tents_linear(&y, &knots.sensor[i]),
+        _ => {
+            let taus: &[f64] = if h < 0.005 {
+                &[1e-3, 3e-3, 10e-3, 30e-3]
+            } else {
+                &[10e-3, 30e-3]
+            };
+            taus.iter()
+                .map(|tau| {
+                    lagged(&y, h, *tau)
+                        .iter()
+                        .zip(&y)
+                        .map(|(a, b)| (a - b) / eps)
+                        .collect()
+                })
+                .collect()
+        }
+    };
+    fs.into_iter()
+        .map(|f| {
+            let mut t = s.clone();
+            let v: Vec<f64> = y.iter().zip(&f).map(|(a, b)| a - eps * b).collect();
+            match ch {
+                CalChannel::Xo => t.xo = v,
+                CalChannel::Xi => t.xi = v,
+                CalChannel::P1 => t.p1 = v,
+                CalChannel::P2 => t.p2 = v,
+                CalChannel::Ft => t.ft = v,
+            }
+            run.response(&residuals(&t, plant), eps)
+        })
+        .collect()
+}
+
+/// A clock off by a rate: the elapsed time's block means in each residual
+/// but the first.
+fn clock_columns(run: &RunData) -> Vec<Vec<f64>> {
+    let n = run.sig.len();
+    let h = run.sig.h_s;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * h).collect();
+    let nb = run.blocks();
+    (1..4)
+        .map(|r| {
+            let mut col = vec![0.0; 4 * nb];
+            let b = block_means(&t, run.block);
+            for (k, v) in b.iter().enumerate() {
+                col[r * nb + k] = *v;
+            }
+            col
+        })
+        .collect()
 }
 
 /// How a closure did: its weights' fit and what it explains.

@@ -114,127 +114,208 @@ struct SubFit {
 /// Re-estimate the parameters on `runs`; `None` when the nominal model
 /// cannot be replayed.
 pub fn fit(runs: &[Run], base: &Plant, dt_s: f64) -> Option<GreyBox> {
-    let full = |theta: &[f64]| -> Option<Vec<f64>> {
+    let mut g = GreyFit::new(runs, base, dt_s)?;
+    // 1. One-parameter scans: where each ratio alone lowers the residual most.
+    let scans = g.scans();
+    // 2. Forward selection of a small subset.
+    let chosen = g.select(&scans);
+    // 3. The final fit and its intervals.
+    let (theta, estimates) = match chosen {
+        Some(s) => g.final_fit(s)?,
+        None => ([0.0; 7], Vec::new()),
+    };
+    let plausible = !estimates.is_empty()
+        && estimates
+            .iter()
+            .all(|e| !e.at_bound && (PLAUSIBLE.0..=PLAUSIBLE.1).contains(&e.ratio));
+    Some(GreyBox {
+        effects: ratios_effects(&theta),
+        estimates,
+        plausible,
+        evals: g.evals,
+    })
+}
+
+/// The steps of [`fit`] on the fit runs, and the replays they took.
+struct GreyFit<'a> {
+    /// The fit runs.
+    runs: &'a [Run],
+    /// The nominal plant.
+    base: &'a Plant,
+    /// The replay's step, s.
+    dt_s: f64,
+    /// [`RATIO_BOUNDS`] in ln(ratio).
+    lo: f64,
+    /// See `lo`.
+    hi: f64,
+    /// The nominal model's residuals.
+    r0: Vec<f64>,
+    /// The residuals' noise floor (sum of squares).
+    floor: f64,
+    /// Replays of the fit runs so far.
+    evals: usize,
+}
+
+impl<'a> GreyFit<'a> {
+    /// The nominal model replayed once; `None` where it cannot be.
+    fn new(runs: &'a [Run], base: &'a Plant, dt_s: f64) -> Option<Self> {
+        let mut g = Self {
+            runs,
+            base,
+            dt_s,
+            lo: RATIO_BOUNDS.0.ln(),
+            hi: RATIO_BOUNDS.1.ln(),
+            r0: Vec::new(),
+            floor: 0.0,
+            evals: 1,
+        };
+        g.r0 = g.full(&[0.0; 7])?;
+        g.floor = noise_floor(runs);
+        Some(g)
+    }
+
+    /// The residuals with the ratios exp(`theta`).
+    fn full(&self, theta: &[f64]) -> Option<Vec<f64>> {
         let t: [f64; 7] = std::array::from_fn(|i| theta[i]);
-        lsq::residuals(runs, base, &ratios_effects(&t), dt_s)
-    };
-    let (lo, hi) = (RATIO_BOUNDS.0.ln(), RATIO_BOUNDS.1.ln());
-    let r0 = full(&[0.0; 7])?;
-    let floor = noise_floor(runs);
-    let excess = |rss: f64| (rss - floor).max(0.0);
-    let mut evals = 1;
-    // Ratios `free` at `x` (others 1) as the full theta.
-    let theta_of = |free: &[usize], x: &[f64]| -> [f64; 7] {
-        let mut t = [0.0; 7];
-        for (i, v) in free.iter().zip(x) {
-            t[*i] = *v;
-        }
-        t
-    };
-    let refit = |free: Vec<usize>, x0: Vec<f64>, iters: usize| -> Option<SubFit> {
-        let sub = |x: &[f64]| full(&theta_of(&free, x));
+        lsq::residuals(self.runs, self.base, &ratios_effects(&t), self.dt_s)
+    }
+
+    /// A sum of squares' excess over the noise floor.
+    fn excess(&self, rss: f64) -> f64 {
+        (rss - self.floor).max(0.0)
+    }
+
+    /// Levenberg-Marquardt on the ratios `free` from `x0`, the others at 1.
+    fn refit(&self, free: Vec<usize>, x0: Vec<f64>, iters: usize) -> Option<SubFit> {
+        let sub = |x: &[f64]| self.full(&theta_of(&free, x));
         let p = free.len();
         let fit = levenberg_marquardt(
             &sub,
             &x0,
             None,
             &vec![H_LN; p],
-            &vec![lo; p],
-            &vec![hi; p],
+            &vec![self.lo; p],
+            &vec![self.hi; p],
             iters,
         )?;
         Some(SubFit { free, fit })
-    };
-    // 1. One-parameter scans: where each ratio alone lowers the residual most.
-    let scans: Vec<(usize, f64, f64)> = (0..7)
-        .into_par_iter()
-        .map(|j| {
-            let mut best = (0.0, lsq::ss(&r0));
-            for &g in &SCAN {
-                let mut t = [0.0; 7];
-                t[j] = g;
-                if let Some(r) = full(&t) {
-                    let v = lsq::ss(&r);
-                    if v < best.1 {
-                        best = (g, v);
+    }
+
+    /// Each ratio alone on [`SCAN`]: (ratio, best ln(ratio), its sum of
+    /// squares).
+    fn scans(&mut self) -> Vec<(usize, f64, f64)> {
+        let scans = (0..7)
+            .into_par_iter()
+            .map(|j| {
+                let mut best = (0.0, lsq::ss(&self.r0));
+                for &g in &SCAN {
+                    let mut t = [0.0; 7];
+                    t[j] = g;
+                    if let Some(r) = self.full(&t) {
+                        let v = lsq::ss(&r);
+                        if v < best.1 {
+                            best = (g, v);
+                        }
                     }
                 }
-            }
-            (j, best.0, best.1)
-        })
-        .collect();
-    evals += 7 * SCAN.len();
-    // 2. Forward selection: the most promising ratios refitted with those
-    //    already chosen; the best kept while it lowers the excess by MIN_GAIN.
-    let mut now: Option<SubFit> = None;
-    let mut now_excess = excess(lsq::ss(&r0));
-    // The gap the excess implies: its mean per block and channel, rooted.
-    let implied_gap = |e: f64| (e / r0.len().max(1) as f64).sqrt();
-    while now.as_ref().map_or(0, |s| s.free.len()) < MAX_FREE
-        && now_excess > 0.0
-        && (now.is_none() || implied_gap(now_excess) >= CLEAN_GAP)
-    {
-        let (free, x) = match &now {
-            Some(s) => (s.free.clone(), s.fit.x.clone()),
-            None => (Vec::new(), Vec::new()),
-        };
-        let proposals: Vec<(usize, f64)> = if free.is_empty() {
-            let mut by_scan = scans.clone();
-            by_scan.sort_by(|a, b| a.2.total_cmp(&b.2));
-            by_scan.iter().take(TRIES).map(|s| (s.0, s.1)).collect()
-        } else {
-            // Linearised at the current estimate.
-            let t = theta_of(&free, &x);
-            let r = now.as_ref().map(|s| s.fit.r.clone()).unwrap_or_default();
-            let jac = lsq::jacobian(&full, &t, &r, &[H_LN; 7], &[hi; 7]);
-            evals += 7;
-            let mut lin = linear_gains(&jac, &r, &free);
-            lin.sort_by(|a, b| a.1.total_cmp(&b.1));
-            lin.iter().take(TRIES).map(|l| (l.0, 0.0)).collect()
-        };
-        let trials: Vec<SubFit> = proposals
-            .par_iter()
-            .filter_map(|&(j, start)| {
-                let mut f = free.clone();
-                f.push(j);
-                let mut x0 = x.clone();
-                x0.push(start);
-                refit(f, x0, TRIAL_ITERS)
+                (j, best.0, best.1)
             })
             .collect();
-        evals += trials.iter().map(|t| t.fit.evals).sum::<usize>();
-        let Some(best) = trials
-            .into_iter()
-            .min_by(|a, b| a.fit.rss.total_cmp(&b.fit.rss))
-        else {
-            break;
-        };
-        let e = excess(best.fit.rss);
-        if now_excess - e < MIN_GAIN * now_excess {
-            break;
-        }
-        now_excess = e;
-        now = Some(best);
+        self.evals += 7 * SCAN.len();
+        scans
     }
-    // 3. The final fit and its intervals.
-    let mut theta = [0.0; 7];
-    let mut estimates = Vec::new();
-    if let Some(s) = now {
-        let last = refit(s.free.clone(), s.fit.x.clone(), ITERS)?;
+
+    /// Forward selection: the most promising ratios refitted with those
+    /// already chosen; the best kept while it lowers the excess by
+    /// [`MIN_GAIN`], at most [`MAX_FREE`], while the gap left is beyond a
+    /// clean run's.
+    fn select(&mut self, scans: &[(usize, f64, f64)]) -> Option<SubFit> {
+        let mut now: Option<SubFit> = None;
+        let mut now_excess = self.excess(lsq::ss(&self.r0));
+        // The gap the excess implies: its mean per block and channel, rooted.
+        let blocks = self.r0.len().max(1) as f64;
+        let implied_gap = |e: f64| (e / blocks).sqrt();
+        while now.as_ref().map_or(0, |s| s.free.len()) < MAX_FREE
+            && now_excess > 0.0
+            && (now.is_none() || implied_gap(now_excess) >= CLEAN_GAP)
+        {
+            let (free, x) = match &now {
+                Some(s) => (s.free.clone(), s.fit.x.clone()),
+                None => (Vec::new(), Vec::new()),
+            };
+            let proposals = self.proposals(scans, now.as_ref(), &free, &x);
+            let trials: Vec<SubFit> = proposals
+                .par_iter()
+                .filter_map(|&(j, start)| {
+                    let mut f = free.clone();
+                    f.push(j);
+                    let mut x0 = x.clone();
+                    x0.push(start);
+                    self.refit(f, x0, TRIAL_ITERS)
+                })
+                .collect();
+            self.evals += trials.iter().map(|t| t.fit.evals).sum::<usize>();
+            let Some(best) = trials
+                .into_iter()
+                .min_by(|a, b| a.fit.rss.total_cmp(&b.fit.rss))
+            else {
+                break;
+            };
+            let e = self.excess(best.fit.rss);
+            if now_excess - e < MIN_GAIN * now_excess {
+                break;
+            }
+            now_excess = e;
+            now = Some(best);
+        }
+        now
+    }
+
+    /// The ratios to try next with their starts: the best [`TRIES`] of the
+    /// scans first, then of the problem linearised at the current estimate
+    /// `now` (ratios `free` at `x`).
+    fn proposals(
+        &mut self,
+        scans: &[(usize, f64, f64)],
+        now: Option<&SubFit>,
+        free: &[usize],
+        x: &[f64],
+    ) -> Vec<(usize, f64)> {
+        if free.is_empty() {
+            let mut by_scan = scans.to_vec();
+            by_scan.sort_by(|a, b| a.2.total_cmp(&b.2));
+            return by_scan.iter().take(TRIES).map(|s| (s.0, s.1)).collect();
+        }
+        let t = theta_of(free, x);
+        let r = now.map(|s| s.fit.r.clone()).unwrap_or_default();
+        let full = |theta: &[f64]| self.full(theta);
+        let jac = lsq::jacobian(&full, &t, &r, &[H_LN; 7], &[self.hi; 7]);
+        self.evals += 7;
+        let mut lin = linear_gains(&jac, &r, free);
+        lin.sort_by(|a, b| a.1.total_cmp(&b.1));
+        lin.iter().take(TRIES).map(|l| (l.0, 0.0)).collect()
+    }
+
+    /// The subset `s` fitted to convergence (kept where that is no better),
+    /// as the full theta and the estimates with their 95 % intervals.
+    fn final_fit(&mut self, s: SubFit) -> Option<([f64; 7], Vec<Estimate>)> {
+        let last = self.refit(s.free.clone(), s.fit.x.clone(), ITERS)?;
         let last = if last.fit.rss <= s.fit.rss { last } else { s };
-        evals += last.fit.evals;
+        self.evals += last.fit.evals;
         let f = &last.fit;
         let sd = standard_errors(f);
+        let mut theta = [0.0; 7];
+        let mut estimates = Vec::new();
         for (k, &i) in last.free.iter().enumerate() {
             theta[i] = f.x[k];
-            let at_bound = f.x[k] <= lo + AT_BOUND_LN || f.x[k] >= hi - AT_BOUND_LN;
+            let at_bound = f.x[k] <= self.lo + AT_BOUND_LN || f.x[k] >= self.hi - AT_BOUND_LN;
             let ratio = f.x[k].exp();
             let band = [(f.x[k] - 1.96 * sd[k]).exp(), (f.x[k] + 1.96 * sd[k]).exp()];
             for name in RATIO_KEYS[i] {
                 let Some(key) = params::find(name) else {
                     continue;
                 };
-                let nominal = key.get(base.params());
+                let nominal = key.get(self.base.params());
                 estimates.push(Estimate {
                     key: key.name.to_string(),
                     nominal,
@@ -245,17 +326,17 @@ pub fn fit(runs: &[Run], base: &Plant, dt_s: f64) -> Option<GreyBox> {
                 });
             }
         }
+        Some((theta, estimates))
     }
-    let plausible = !estimates.is_empty()
-        && estimates
-            .iter()
-            .all(|e| !e.at_bound && (PLAUSIBLE.0..=PLAUSIBLE.1).contains(&e.ratio));
-    Some(GreyBox {
-        effects: ratios_effects(&theta),
-        estimates,
-        plausible,
-        evals,
-    })
+}
+
+/// Ratios `free` at `x` (others 1) as the full theta.
+fn theta_of(free: &[usize], x: &[f64]) -> [f64; 7] {
+    let mut t = [0.0; 7];
+    for (i, v) in free.iter().zip(x) {
+        t[*i] = *v;
+    }
+    t
 }
 
 /// For each ratio not in `free`: the sum of squares the linearised problem

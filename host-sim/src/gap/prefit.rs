@@ -192,24 +192,6 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
 /// refined on a finer axis around it, and Nelder-Mead polishes the result.
 /// Knots the runs never reach stay at the force of the knot before (flat).
 pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64, f64)> {
-    const K: usize = ENVELOPE_SPEEDS_MPS.len();
-    let make = |m: f64, a: &[f64]| {
-        let mut f = [a[0]; K];
-        for k in 1..K {
-            f[k] = a[k].clamp(0.0, f[k - 1]);
-        }
-        ServoEnvelope {
-            mass_eq_kg: m,
-            force_n: f,
-        }
-    };
-    let err = |m: f64, a: &[f64], stop: f64| {
-        let s = make(m, a);
-        if !s.is_valid() {
-            return f64::INFINITY;
-        }
-        total_error(runs, plant, Servo::Envelope(&s), true, stop)
-    };
     let nominal = total_error(runs, plant, Servo::Nominal, true, f64::INFINITY);
     // Only where the gap is in the servo: the nominal servo leaves Xi off by
     // more than its scale on average.
@@ -217,47 +199,170 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
     if nominal <= samples as f64 {
         return None;
     }
+    let search = EnvelopeSearch { runs, plant };
+    // A coarse log axis of masses from flat forces, then a finer one around
+    // the best from its forces.
+    let mut best = (nominal, 0.0, [0.0; K]);
+    for m in log_axis(MOTOR_MASS.lo, 1e3, 8) {
+        let (e, a) = search.knots(m, [MOTOR_FORCE.at(0.5); K]);
+        if e < best.0 {
+            best = (e, m, a);
+        }
+    }
+    if best.1 == 0.0 {
+        return None;
+    }
+    let m0 = best.1;
+    for m in log_axis(m0 / 1.9, m0 * 1.9, 6) {
+        let (e, a) = search.knots(m, best.2);
+        if e < best.0 {
+            best = (e, m, a);
+        }
+    }
+    let (e, m, a) = search.polish(best);
+    Some((envelope(m, &a), e, nominal))
+}
+
+/// Knots of the servo envelope.
+const K: usize = ENVELOPE_SPEEDS_MPS.len();
+
+/// The envelope of mass `m` and knot forces `a`, each knot capped by the one
+/// before (the envelope never rises with speed) and at least 0.
+fn envelope(m: f64, a: &[f64]) -> ServoEnvelope {
+    let mut f = [a[0]; K];
+    for k in 1..K {
+        f[k] = a[k].clamp(0.0, f[k - 1]);
+    }
+    ServoEnvelope {
+        mass_eq_kg: m,
+        force_n: f,
+    }
+}
+
+/// `n` points from `lo` to `hi` on a log axis.
+fn log_axis(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| (lo.ln() + (hi.ln() - lo.ln()) * i as f64 / (n - 1) as f64).exp())
+        .collect()
+}
+
+/// Golden section of `f(x, stop)` on [lo, hi] after a scan of `n` points,
+/// as (value, x). Evaluations stop at four times the best value of the line
+/// so far: values near the valley stay exact, so the bracket is found.
+fn golden_line(f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
-    // Golden section of `f(x, stop)` on [lo, hi] after a scan of `n`
-    // points. Evaluations stop at four times the best value of the line so
-    // far: values near the valley stay exact, so the bracket is found.
-    let line = |f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize| -> (f64, f64) {
-        let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
-        let mut best = (f64::INFINITY, 0usize);
-        for i in 0..n {
-            let e = f(at(i), 4.0 * best.0);
-            if e < best.0 {
-                best = (e, i);
+    let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
+    let mut best = (f64::INFINITY, 0usize);
+    for i in 0..n {
+        let e = f(at(i), 4.0 * best.0);
+        if e < best.0 {
+            best = (e, i);
+        }
+    }
+    let (mut a, mut b) = (at(best.1.saturating_sub(1)), at((best.1 + 1).min(n - 1)));
+    let mut out = (best.0, at(best.1));
+    for _ in 0..12 {
+        let (c, d) = (b - g * (b - a), a + g * (b - a));
+        let (ec, ed) = (f(c, 4.0 * out.0), f(d, 4.0 * out.0));
+        for (e, u) in [(ec, c), (ed, d)] {
+            if e < out.0 {
+                out = (e, u);
             }
         }
-        let (mut a, mut b) = (at(best.1.saturating_sub(1)), at((best.1 + 1).min(n - 1)));
-        let mut out = (best.0, at(best.1));
-        for _ in 0..12 {
-            let (c, d) = (b - g * (b - a), a + g * (b - a));
-            let (ec, ed) = (f(c, 4.0 * out.0), f(d, 4.0 * out.0));
-            for (e, u) in [(ec, c), (ed, d)] {
-                if e < out.0 {
-                    out = (e, u);
+        if ec < ed {
+            b = d;
+        } else {
+            a = c;
+        }
+    }
+    out
+}
+
+/// The steps of [`servo_envelope`]'s search over the runs.
+struct EnvelopeSearch<'a> {
+    /// The runs whose Xi the envelope explains.
+    runs: &'a [Run],
+    /// The nominal plant.
+    plant: &'a Plant,
+}
+
+impl EnvelopeSearch<'_> {
+    /// Squared Xi error of the envelope (mass `m`, forces `a`), stopping
+    /// early above `stop`; infinite for an invalid envelope.
+    fn error(&self, m: f64, a: &[f64], stop: f64) -> f64 {
+        let s = envelope(m, a);
+        if !s.is_valid() {
+            return f64::INFINITY;
+        }
+        total_error(self.runs, self.plant, Servo::Envelope(&s), true, stop)
+    }
+
+    /// Knot-by-knot search at mass `m` from the forces `a0`: twice over, the
+    /// force at rest, then each further knot from the fastest down; then
+    /// the knots the runs leave free raised ([`Self::raise`]).
+    fn knots(&self, m: f64, a0: [f64; K]) -> (f64, [f64; K]) {
+        let mut a = a0;
+        let mut e = f64::INFINITY;
+        for sweep in 0..2 {
+            self.force_at_rest(m, sweep, &mut a, &mut e);
+            // From the fastest knot down: lowering one caps only the
+            // speeds above it (a knot lowered first would cap them all).
+            for k in (1..K).rev() {
+                let top = a[k - 1];
+                let fk = |x: f64, stop: f64| {
+                    let mut y = a;
+                    y[k] = x;
+                    self.error(m, &y, stop)
+                };
+                let (ek, xk) = golden_line(&fk, 0.0, top, 9);
+                if ek < e {
+                    (e, a[k]) = (ek, xk);
                 }
             }
-            if ec < ed {
-                b = d;
-            } else {
-                a = c;
-            }
         }
-        out
-    };
-    // Where the runs never press the drive at a knot's speed, the error is
-    // flat below the knot before: each knot is raised to the highest force
-    // within FLAT_TOL of the error `e` (limit only where the data show it).
-    let raise = |m: f64, a: &mut [f64; K], e: f64| -> (f64, [f64; K]) {
+        self.raise(m, &mut a, e)
+    }
+
+    /// The force at rest on a log axis (u in [0, 1] of MOTOR_FORCE), all
+    /// knots scaled with it: the whole axis on the first sweep, a narrow
+    /// span around the current force after. Updates `a` and its error `e`
+    /// where better.
+    fn force_at_rest(&self, m: f64, sweep: usize, a: &mut [f64; K], e: &mut f64) {
+        let (lo, hi) = if sweep == 0 {
+            (0.0, 1.0)
+        } else {
+            let u = MOTOR_FORCE.u_of(a[0]);
+            ((u - 0.05).max(0.0), (u + 0.05).min(1.0))
+        };
+        let from = *a;
+        let f0 = |u: f64, stop: f64| {
+            let mut y = from;
+            let ratio = MOTOR_FORCE.at(u) / from[0];
+            for v in y.iter_mut() {
+                *v *= ratio;
+            }
+            self.error(m, &y, stop)
+        };
+        let (e0, u0) = golden_line(&f0, lo, hi, if sweep == 0 { 30 } else { 5 });
+        if e0 < *e {
+            let ratio = MOTOR_FORCE.at(u0) / a[0];
+            for v in a.iter_mut() {
+                *v *= ratio;
+            }
+            *e = e0;
+        }
+    }
+
+    /// Where the runs never press the drive at a knot's speed, the error is
+    /// flat below the knot before: each knot is raised to the highest force
+    /// within FLAT_TOL of the error `e` (limit only where the data show it).
+    fn raise(&self, m: f64, a: &mut [f64; K], e: f64) -> (f64, [f64; K]) {
         let tol = e * (1.0 + FLAT_TOL) + 1.0;
         for k in 1..K {
             let fits = |x: f64| {
                 let mut y = *a;
                 y[k] = x;
-                err(m, &y, tol) <= tol
+                self.error(m, &y, tol) <= tol
             };
             let (mut lo, mut hi) = (a[k].min(a[k - 1]), a[k - 1]);
             if fits(hi) {
@@ -274,90 +379,29 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
             }
             a[k] = lo;
         }
-        (err(m, a, f64::INFINITY), *a)
-    };
-    // Knot-by-knot search at mass `m` from the forces `a0`.
-    let knots = |m: f64, a0: [f64; K]| -> (f64, [f64; K]) {
-        let mut a = a0;
-        let mut e = f64::INFINITY;
-        for sweep in 0..2 {
-            // The force at rest on a log axis (u in [0, 1] of MOTOR_FORCE).
-            let (lo, hi) = if sweep == 0 {
-                (0.0, 1.0)
-            } else {
-                let u = MOTOR_FORCE.u_of(a[0]);
-                ((u - 0.05).max(0.0), (u + 0.05).min(1.0))
-            };
-            let f0 = |u: f64, stop: f64| {
-                let mut y = a;
-                let ratio = MOTOR_FORCE.at(u) / a[0];
-                for v in y.iter_mut() {
-                    *v *= ratio;
-                }
-                err(m, &y, stop)
-            };
-            let (e0, u0) = line(&f0, lo, hi, if sweep == 0 { 30 } else { 5 });
-            if e0 < e {
-                let ratio = MOTOR_FORCE.at(u0) / a[0];
-                for v in a.iter_mut() {
-                    *v *= ratio;
-                }
-                e = e0;
-            }
-            // From the fastest knot down: lowering one caps only the
-            // speeds above it (a knot lowered first would cap them all).
-            for k in (1..K).rev() {
-                let top = a[k - 1];
-                let fk = |x: f64, stop: f64| {
-                    let mut y = a;
-                    y[k] = x;
-                    err(m, &y, stop)
-                };
-                let (ek, xk) = line(&fk, 0.0, top, 9);
-                if ek < e {
-                    (e, a[k]) = (ek, xk);
-                }
-            }
-        }
-        raise(m, &mut a, e)
-    };
-    let mut best = (nominal, 0.0, [0.0; K]);
-    let masses = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
-        (0..n)
-            .map(|i| (lo.ln() + (hi.ln() - lo.ln()) * i as f64 / (n - 1) as f64).exp())
-            .collect()
-    };
-    for m in masses(MOTOR_MASS.lo, 1e3, 8) {
-        let (e, a) = knots(m, [MOTOR_FORCE.at(0.5); K]);
-        if e < best.0 {
-            best = (e, m, a);
+        (self.error(m, a, f64::INFINITY), *a)
+    }
+
+    /// Nelder-Mead over the mass and the forces together from `best`
+    /// (error, mass, forces), the free knots raised again; the better of
+    /// the two.
+    fn polish(&self, best: (f64, f64, [f64; K])) -> (f64, f64, [f64; K]) {
+        let mut bounds = vec![MOTOR_MASS, MOTOR_FORCE];
+        let top = best.2[0];
+        bounds.extend([Bound { lo: 0.0, hi: top }; K - 1]);
+        let mut x0 = vec![best.1];
+        x0.extend(best.2);
+        let mut f = |x: &[f64], stop: f64| self.error(x[0], &x[1..], stop);
+        let r = minimize(&mut f, &bounds, &x0, 0, 300);
+        if r.value < best.0 {
+            let mut a = [0.0; K];
+            a.copy_from_slice(&r.x[1..]);
+            let (e, a) = self.raise(r.x[0], &mut a, r.value);
+            (e, r.x[0], a)
+        } else {
+            best
         }
     }
-    if best.1 == 0.0 {
-        return None;
-    }
-    let m0 = best.1;
-    for m in masses(m0 / 1.9, m0 * 1.9, 6) {
-        let (e, a) = knots(m, best.2);
-        if e < best.0 {
-            best = (e, m, a);
-        }
-    }
-    // Nelder-Mead over the mass and the forces together.
-    let mut bounds = vec![MOTOR_MASS, MOTOR_FORCE];
-    let top = best.2[0];
-    bounds.extend([Bound { lo: 0.0, hi: top }; K - 1]);
-    let mut x0 = vec![best.1];
-    x0.extend(best.2);
-    let mut f = |x: &[f64], stop: f64| err(x[0], &x[1..], stop);
-    let r = minimize(&mut f, &bounds, &x0, 0, 300);
-    if r.value < best.0 {
-        let mut a = [0.0; K];
-        a.copy_from_slice(&r.x[1..]);
-        let (e, a) = raise(r.x[0], &mut a, r.value);
-        best = (e, r.x[0], a);
-    }
-    Some((make(best.1, &best.2), best.0, nominal))
 }
 
 #[cfg(test)]

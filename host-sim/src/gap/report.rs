@@ -497,140 +497,207 @@ fn isolation_section(md: &mut String, iso: &Isolation) {
 /// Each learned general family of the verdict's effects: its table and figure.
 fn effect_sections(dir: &Path, md: &mut String, details: &Details) -> Result<(), ReportError> {
     if let Some(h) = &details.effects.hose_spectrum {
-        spectrum_figure(&dir.join("hose_spectrum.png"), h)?;
-        let _ = writeln!(
-            md,
-            "## The hose wall's learned hysteresis\n\n\
-             | element yield [kPa] | {} |\n|---|{}\n| compliance when engaged [m^3/Pa] | {} |\n\n\
-             ![hose hysteresis](hose_spectrum.png)\n",
-            SPECTRUM_YIELDS_PA
-                .map(|y| format!("{:.0}", y * 1e-3))
-                .join(" | "),
-            "---|".repeat(SPECTRUM_YIELDS_PA.len()),
-            h.c_m3pp.map(|c| format!("{c:.2e}")).join(" | "),
-        );
+        hose_spectrum_section(dir, md, h)?;
     }
     if let Some(s) = &details.effects.servo_envelope {
-        envelope_figure(&dir.join("servo_envelope.png"), s, details)?;
-        let _ = writeln!(
-            md,
-            "## The servo's learned force envelope\n\n\
-             | speed [mm/s] | {} |\n|---|{}\n| available force [N] | {} |\n\n\
-             Reflected mass {:.1} kg. Knots that the fit runs never press stay at the force of the \
-             knot below them.\n\n![servo envelope](servo_envelope.png)\n",
-            ENVELOPE_SPEEDS_MPS
-                .map(|v| format!("{:.0}", v * 1e3))
-                .join(" | "),
-            "---|".repeat(ENVELOPE_SPEEDS_MPS.len()),
-            s.force_n.map(|f| format!("{f:.0}")).join(" | "),
-            s.mass_eq_kg
-        );
+        servo_envelope_section(dir, md, s, details)?;
     }
     if let Some(f) = &details.effects.friction_map {
-        friction_figure(&dir.join("friction_map.png"), f)?;
-        let _ = writeln!(
-            md,
-            "## The seals' learned friction\n\n\
-             | speed [mm/s] | {} |\n|---|{}\n| friction at P1 + P2 = 0 [N] | {} |\n\n\
-             Plus {:.1} N per MPa of P1 + P2. Flat beyond the last knot.\n\n\
-             ![friction map](friction_map.png)\n",
-            FRICTION_SPEEDS_MPS
-                .map(|v| format!("{:.1}", v * 1e3))
-                .join(" | "),
-            "---|".repeat(FRICTION_SPEEDS_MPS.len()),
-            f.force_n.map(|x| format!("{x:.1}")).join(" | "),
-            f.n_per_mpa
-        );
+        friction_map_section(dir, md, f)?;
     }
     if let Some(l) = &details.effects.leakage_map {
-        leakage_figure(&dir.join("leakage_map.png"), l)?;
-        let _ = writeln!(
-            md,
-            "## The seals' learned leakage\n\n\
-             | abs(P1 - P2) [MPa] | {} |\n|---|{}\n| flow [cm^3/s] | {} |\n\n\
-             Plus {:.3e} m^3/(s Pa) times dP per MPa of mean line pressure. Linear beyond \
-             the last knot.\n\n![leakage map](leakage_map.png)\n",
-            LEAK_DP_PA[1..]
-                .iter()
-                .map(|p| format!("{:.2}", p * 1e-6))
-                .collect::<Vec<_>>()
-                .join(" | "),
-            "---|".repeat(LEAK_DP_PA.len() - 1),
-            l.q_m3ps.map(|q| format!("{:.3}", q * 1e6)).join(" | "),
-            l.g_m3pspa
-        );
+        leakage_map_section(dir, md, l)?;
     }
     if let Some(m) = &details.effects.screw_map {
-        screw_figure(&dir.join("screw_map.png"), m)?;
-        let _ = writeln!(
-            md,
-            "## The coupling's learned deflection\n\n\
-             | force on the power piston [N] | {} |\n|---|{}\n| deflection [um] | {} |\n\n\
-             Odd in the force; linear beyond the last knot. The step from 0 N to the first knot \
-             is the play crossed where the force turns.\n\n![screw map](screw_map.png)\n",
-            SCREW_FORCES_N[1..]
-                .iter()
-                .map(|f| format!("{f:.0}"))
-                .collect::<Vec<_>>()
-                .join(" | "),
-            "---|".repeat(SCREW_FORCES_N.len() - 1),
-            m.deflection_m
-                .map(|d| format!("{:.1}", d * 1e6))
-                .join(" | "),
-        );
+        screw_map_section(dir, md, m)?;
     }
     if let Some(g) = &details.effects.gas_relaxation {
-        let n_poly = details.base.params().n_poly;
-        gas_figure(&dir.join("gas_relaxation.png"), g, n_poly)?;
-        let _ = writeln!(
-            md,
-            "## The accumulator gas's learned relaxation\n\n\
-             | time constant [s] | {} |\n|---|{}\n| weight | {} |\n\n\
-             A step compression meets the index {n_poly}; after 1 s it is {:.3}, after 10 s \
-             {:.3}, at length {:.3}.\n\n![gas relaxation](gas_relaxation.png)\n",
-            GAS_TAUS_S.map(|t| format!("{t}")).join(" | "),
-            "---|".repeat(GAS_TAUS_S.len()),
-            g.weights.map(|w| format!("{w:.3}")).join(" | "),
-            g.index_after(n_poly, 1.0),
-            g.index_after(n_poly, 10.0),
-            g.index_after(n_poly, f64::INFINITY),
-        );
+        gas_relaxation_section(dir, md, g, details)?;
     }
     if let Some(f) = &details.effects.sensor_filter {
-        filter_figure(&dir.join("sensor_filter.png"), f)?;
-        let _ = writeln!(
-            md,
-            "## The learned lag of `{}`\n\n\
-             | delay [ms] | {} |\n|---|{}\n| weight | {} |\n\n\
-             Mean delay {:.2} ms.\n\n![sensor filter](sensor_filter.png)\n",
-            f.channel.name(),
-            FILTER_DELAYS_S
-                .map(|d| format!("{:.0}", d * 1e3))
-                .join(" | "),
-            "---|".repeat(FILTER_DELAYS_S.len()),
-            f.normalised().map(|w| format!("{w:.3}")).join(" | "),
-            f.mean_delay_s() * 1e3
-        );
+        sensor_filter_section(dir, md, f)?;
     }
     if let Some(m) = &details.effects.sensor_map {
-        map_figure(&dir.join("sensor_map.png"), m, details)?;
-        let ((vu, vk), (du, dk)) = display_units(m.channel);
-        let _ = writeln!(
-            md,
-            "## The learned map of `{}`\n\n\
-             | true value [{vu}] | {} |\n|---|{}\n| recorded minus true [{du}] | {} |\n\n\
-             Linear beyond the end knots.\n\n![sensor map](sensor_map.png)\n",
-            m.channel.name(),
-            m.knots_si.map(|k| format!("{:.3}", k * vk)).join(" | "),
-            "---|".repeat(m.knots_si.len()),
-            m.knots_si
-                .iter()
-                .zip(m.readings_si)
-                .map(|(k, r)| format!("{:.1}", (r - k) * dk))
-                .collect::<Vec<_>>()
-                .join(" | "),
-        );
+        sensor_map_section(dir, md, m, details)?;
     }
+    Ok(())
+}
+
+/// The hose wall's learned hysteresis: its compliances over the yields.
+fn hose_spectrum_section(
+    dir: &Path,
+    md: &mut String,
+    h: &HysteresisSpectrum,
+) -> Result<(), ReportError> {
+    spectrum_figure(&dir.join("hose_spectrum.png"), h)?;
+    let _ = writeln!(
+        md,
+        "## The hose wall's learned hysteresis\n\n\
+         | element yield [kPa] | {} |\n|---|{}\n| compliance when engaged [m^3/Pa] | {} |\n\n\
+         ![hose hysteresis](hose_spectrum.png)\n",
+        SPECTRUM_YIELDS_PA
+            .map(|y| format!("{:.0}", y * 1e-3))
+            .join(" | "),
+        "---|".repeat(SPECTRUM_YIELDS_PA.len()),
+        h.c_m3pp.map(|c| format!("{c:.2e}")).join(" | "),
+    );
+    Ok(())
+}
+
+/// The servo's learned force envelope over speed.
+fn servo_envelope_section(
+    dir: &Path,
+    md: &mut String,
+    s: &ServoEnvelope,
+    details: &Details,
+) -> Result<(), ReportError> {
+    envelope_figure(&dir.join("servo_envelope.png"), s, details)?;
+    let _ = writeln!(
+        md,
+        "## The servo's learned force envelope\n\n\
+         | speed [mm/s] | {} |\n|---|{}\n| available force [N] | {} |\n\n\
+         Reflected mass {:.1} kg. Knots that the fit runs never press stay at the force of the \
+         knot below them.\n\n![servo envelope](servo_envelope.png)\n",
+        ENVELOPE_SPEEDS_MPS
+            .map(|v| format!("{:.0}", v * 1e3))
+            .join(" | "),
+        "---|".repeat(ENVELOPE_SPEEDS_MPS.len()),
+        s.force_n.map(|f| format!("{f:.0}")).join(" | "),
+        s.mass_eq_kg
+    );
+    Ok(())
+}
+
+/// The seals' learned friction over speed.
+fn friction_map_section(dir: &Path, md: &mut String, f: &FrictionMap) -> Result<(), ReportError> {
+    friction_figure(&dir.join("friction_map.png"), f)?;
+    let _ = writeln!(
+        md,
+        "## The seals' learned friction\n\n\
+         | speed [mm/s] | {} |\n|---|{}\n| friction at P1 + P2 = 0 [N] | {} |\n\n\
+         Plus {:.1} N per MPa of P1 + P2. Flat beyond the last knot.\n\n\
+         ![friction map](friction_map.png)\n",
+        FRICTION_SPEEDS_MPS
+            .map(|v| format!("{:.1}", v * 1e3))
+            .join(" | "),
+        "---|".repeat(FRICTION_SPEEDS_MPS.len()),
+        f.force_n.map(|x| format!("{x:.1}")).join(" | "),
+        f.n_per_mpa
+    );
+    Ok(())
+}
+
+/// The seals' learned leakage over the pressure difference.
+fn leakage_map_section(dir: &Path, md: &mut String, l: &LeakageMap) -> Result<(), ReportError> {
+    leakage_figure(&dir.join("leakage_map.png"), l)?;
+    let _ = writeln!(
+        md,
+        "## The seals' learned leakage\n\n\
+         | abs(P1 - P2) [MPa] | {} |\n|---|{}\n| flow [cm^3/s] | {} |\n\n\
+         Plus {:.3e} m^3/(s Pa) times dP per MPa of mean line pressure. Linear beyond \
+         the last knot.\n\n![leakage map](leakage_map.png)\n",
+        LEAK_DP_PA[1..]
+            .iter()
+            .map(|p| format!("{:.2}", p * 1e-6))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(LEAK_DP_PA.len() - 1),
+        l.q_m3ps.map(|q| format!("{:.3}", q * 1e6)).join(" | "),
+        l.g_m3pspa
+    );
+    Ok(())
+}
+
+/// The coupling's learned deflection over force.
+fn screw_map_section(dir: &Path, md: &mut String, m: &ScrewMap) -> Result<(), ReportError> {
+    screw_figure(&dir.join("screw_map.png"), m)?;
+    let _ = writeln!(
+        md,
+        "## The coupling's learned deflection\n\n\
+         | force on the power piston [N] | {} |\n|---|{}\n| deflection [um] | {} |\n\n\
+         Odd in the force; linear beyond the last knot. The step from 0 N to the first knot \
+         is the play crossed where the force turns.\n\n![screw map](screw_map.png)\n",
+        SCREW_FORCES_N[1..]
+            .iter()
+            .map(|f| format!("{f:.0}"))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(SCREW_FORCES_N.len() - 1),
+        m.deflection_m
+            .map(|d| format!("{:.1}", d * 1e6))
+            .join(" | "),
+    );
+    Ok(())
+}
+
+/// The accumulator gas's learned relaxation over its time constants.
+fn gas_relaxation_section(
+    dir: &Path,
+    md: &mut String,
+    g: &GasRelaxation,
+    details: &Details,
+) -> Result<(), ReportError> {
+    let n_poly = details.base.params().n_poly;
+    gas_figure(&dir.join("gas_relaxation.png"), g, n_poly)?;
+    let _ = writeln!(
+        md,
+        "## The accumulator gas's learned relaxation\n\n\
+         | time constant [s] | {} |\n|---|{}\n| weight | {} |\n\n\
+         A step compression meets the index {n_poly}; after 1 s it is {:.3}, after 10 s \
+         {:.3}, at length {:.3}.\n\n![gas relaxation](gas_relaxation.png)\n",
+        GAS_TAUS_S.map(|t| format!("{t}")).join(" | "),
+        "---|".repeat(GAS_TAUS_S.len()),
+        g.weights.map(|w| format!("{w:.3}")).join(" | "),
+        g.index_after(n_poly, 1.0),
+        g.index_after(n_poly, 10.0),
+        g.index_after(n_poly, f64::INFINITY),
+    );
+    Ok(())
+}
+
+/// A sensor's learned lag: its weights over the delays.
+fn sensor_filter_section(dir: &Path, md: &mut String, f: &SensorFilter) -> Result<(), ReportError> {
+    filter_figure(&dir.join("sensor_filter.png"), f)?;
+    let _ = writeln!(
+        md,
+        "## The learned lag of `{}`\n\n\
+         | delay [ms] | {} |\n|---|{}\n| weight | {} |\n\n\
+         Mean delay {:.2} ms.\n\n![sensor filter](sensor_filter.png)\n",
+        f.channel.name(),
+        FILTER_DELAYS_S
+            .map(|d| format!("{:.0}", d * 1e3))
+            .join(" | "),
+        "---|".repeat(FILTER_DELAYS_S.len()),
+        f.normalised().map(|w| format!("{w:.3}")).join(" | "),
+        f.mean_delay_s() * 1e3
+    );
+    Ok(())
+}
+
+/// A sensor's learned static map.
+fn sensor_map_section(
+    dir: &Path,
+    md: &mut String,
+    m: &SensorMap,
+    details: &Details,
+) -> Result<(), ReportError> {
+    map_figure(&dir.join("sensor_map.png"), m, details)?;
+    let ((vu, vk), (du, dk)) = display_units(m.channel);
+    let _ = writeln!(
+        md,
+        "## The learned map of `{}`\n\n\
+         | true value [{vu}] | {} |\n|---|{}\n| recorded minus true [{du}] | {} |\n\n\
+         Linear beyond the end knots.\n\n![sensor map](sensor_map.png)\n",
+        m.channel.name(),
+        m.knots_si.map(|k| format!("{:.3}", k * vk)).join(" | "),
+        "---|".repeat(m.knots_si.len()),
+        m.knots_si
+            .iter()
+            .zip(m.readings_si)
+            .map(|(k, r)| format!("{:.1}", (r - k) * dk))
+            .collect::<Vec<_>>()
+            .join(" | "),
+    );
     Ok(())
 }
 

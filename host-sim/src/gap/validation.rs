@@ -66,6 +66,18 @@ fn case(name: &str, list: &[(EffectKind, &[f64])]) -> Case {
 /// loads, a screw in Hertzian contact). Each case's noise seeds follow from
 /// its place ([`suite_logs`]): new cases go last.
 pub fn cases() -> Vec<Case> {
+    let mut all = named_cases();
+    all.extend(pair_cases());
+    all.extend(parameter_cases());
+    all.extend(general_family_cases());
+    all.extend(calibration_cases());
+    // Last: a case added keeps the others' noise seeds.
+    all.push(hertzian_screw_case());
+    all
+}
+
+/// Two clean rigs, then every effect of the catalogue small and large.
+fn named_cases() -> Vec<Case> {
     use EffectKind::*;
     vec![
         case("clean (seed a)", &[]),
@@ -104,6 +116,13 @@ pub fn cases() -> Vec<Case> {
             "accumulator_thermal (large)",
             &[(AccumulatorThermal, &[3.0])],
         ),
+    ]
+}
+
+/// Three pairs of effects.
+fn pair_cases() -> Vec<Case> {
+    use EffectKind::*;
+    vec![
         case(
             "leakage + friction",
             &[(Leakage, &[1e-13]), (Friction, &[40.0, 60.0, 2e-3])],
@@ -116,6 +135,13 @@ pub fn cases() -> Vec<Case> {
             "backlash + accumulator_thermal",
             &[(Backlash, &[150e-6, 2e7]), (AccumulatorThermal, &[4.0])],
         ),
+    ]
+}
+
+/// Four rigs whose nominal parameters are off (`parameters`).
+fn parameter_cases() -> Vec<Case> {
+    use EffectKind::*;
+    vec![
         // Ratios in the order of `ParameterRatios`: m, beta_e, hose wall
         // compliance, viscous damping, servo time constant, precharge, areas.
         case(
@@ -131,7 +157,13 @@ pub fn cases() -> Vec<Case> {
             "parameters: servo time constant +50 %",
             &[(Parameters, &[1.0, 1.0, 1.0, 1.0, 1.5])],
         ),
-        // Shapes the named forms cannot take: their general families.
+    ]
+}
+
+/// Shapes the named forms cannot take: their general families.
+fn general_family_cases() -> Vec<Case> {
+    use EffectKind::*;
+    vec![
         Case {
             name: "motor_limit (torque-speed curve)".into(),
             truth: vec![MotorLimit],
@@ -236,6 +268,13 @@ pub fn cases() -> Vec<Case> {
                 ..Effects::NONE
             },
         },
+    ]
+}
+
+/// Five sensors off their calibration, in the named form.
+fn calibration_cases() -> Vec<Case> {
+    use EffectKind::*;
+    vec![
         // channel (0 xo, 1 xi, 2 p1, 3 p2, 4 ft), gain, offset (SI), quad.
         case(
             "sensor_calibration: LVDT gain 1.03",
@@ -257,20 +296,25 @@ pub fn cases() -> Vec<Case> {
             "sensor_calibration: force gain 0.93",
             &[(SensorCalibration, &[4.0, 0.93, 0.0, 0.0])],
         ),
-        Case {
-            // (Last: a case added keeps the others' noise seeds.) A screw whose balls touch the races in Hertzian contacts: the
-            // deflection grows as F^(2/3) (20 um at 1 kN) beyond a play of
-            // 60 um (the named form's stiffness is constant).
-            name: "backlash (Hertzian contact)".into(),
-            truth: vec![Backlash],
-            effects: Effects {
-                screw_map: Some(ScrewMap {
-                    deflection_m: [24e-6, 31.9e-6, 34.3e-6, 39.0e-6, 50e-6, 71.6e-6],
-                }),
-                ..Effects::NONE
-            },
-        },
     ]
+}
+
+/// A screw in Hertzian contact (the suite's last case).
+fn hertzian_screw_case() -> Case {
+    use EffectKind::*;
+    Case {
+        // A screw whose balls touch the races in Hertzian contacts: the
+        // deflection grows as F^(2/3) (20 um at 1 kN) beyond a play of
+        // 60 um (the named form's stiffness is constant).
+        name: "backlash (Hertzian contact)".into(),
+        truth: vec![Backlash],
+        effects: Effects {
+            screw_map: Some(ScrewMap {
+                deflection_m: [24e-6, 31.9e-6, 34.3e-6, 39.0e-6, 50e-6, 71.6e-6],
+            }),
+            ..Effects::NONE
+        },
+    }
 }
 
 /// The fit scenario: moves with a reversal, then load steps.
