@@ -221,19 +221,12 @@ pub fn diagnose(
     } else {
         iso.to_fit()
     };
-    // Starting points where the gap is a narrow valley (see [`prefit`]).
-    let mut seeds = Effects::NONE;
-    if kinds.contains(&EffectKind::MotorLimit) {
-        if let Some(x) = prefit::motor_limit(&fit, base) {
-            seeds.set(EffectKind::MotorLimit, Some(&x));
-        }
-    }
     let fitter = Fitter {
         fit: &fit,
         check: &check,
         nominal_fit: n.replays.get(..fit.len()).unwrap_or_default(),
         base,
-        seeds,
+        seeds: seeds(&kinds, &fit, base),
         dt_s: opts.dt_s,
         max_evals: opts.max_evals,
         learned: learned_starts(&iso),
@@ -249,80 +242,10 @@ pub fn diagnose(
     // best name, none where the best lies outside the catalogue;
     // `parameters` only where its re-estimate on the check runs agrees.
     let outside = iso.outside_best();
-    let params_agree = !outside
-        && iso.allows(EffectKind::Parameters)
-        && ranked
-            .iter()
-            .find(|c| c.kind == EffectKind::Parameters)
-            .is_some_and(|p| {
-                p.plausible
-                    && policy::explains(
-                        n.fit,
-                        n.check,
-                        p.candidate.fit_after,
-                        p.candidate.check_after,
-                    )
-                    && grey_box::agrees(
-                        p.candidate.parameters.as_deref().unwrap_or_default(),
-                        p.candidate.check_after,
-                        &check,
-                        base,
-                        opts.dt_s,
-                    )
-            });
+    let params_agree = !outside && parameters_agree(&n, &iso, &ranked, &check, base, opts.dt_s);
     let allowed =
         |k: EffectKind| !outside && iso.allows(k) && (k != EffectKind::Parameters || params_agree);
-    // A second effect where the best single one leaves a gap beyond the noise.
-    let pair = if ranked
-        .first()
-        .is_some_and(|b| policy::wants_pair(n.pooled, b, opts.second_effect))
-    {
-        fitter.best_pair(&ranked)
-    } else {
-        None
-    };
-    // The best named candidate that holds, refined by its part's general
-    // family where that holds clearly better on the check runs, before the
-    // verdict is decided: `parameters` is weighed against the effect's best
-    // model, and the effect named stays the same (not within the noise,
-    // where the verdict is `none` whatever the candidates).
-    let best = policy::best_named_holding(n.fit, n.check, &ranked, &allowed);
-    let mut named = None;
-    if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
-        let r = fitter.refine(
-            &ranked[i],
-            n.fit,
-            n.check,
-            &explains,
-            &policy::general_refines,
-        );
-        if let Some(r) = r {
-            named = Some((i, std::mem::replace(&mut ranked[i], r)));
-        }
-    }
-    let mut decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref(), &allowed);
-    // A second effect was fitted beside the named form: where it adds
-    // significantly, the verdict is decided on the named forms.
-    if let Some((i, c)) = named.filter(|_| decision.second.is_some_and(|s| s.significant)) {
-        ranked[i] = c;
-        decision = policy::decide(n.pooled, n.fit, n.check, &ranked, pair.as_ref(), &allowed);
-    }
-    // An effect is named only where its model explains most of the gap
-    // (alone, or with the second effect of the pair it leads).
-    let mut partial = (0..ranked.len()).find(|&i| allowed(ranked[i].kind));
-    if let (Verdict::Effect(k), Some(i)) = (decision.verdict, decision.chosen) {
-        let c = &ranked[i].candidate;
-        let alone = policy::explains_most(n.fit, n.check, c.fit_after, c.check_after);
-        let with_pair = pair.as_ref().is_some_and(|p| {
-            (p.first == k || p.second == k)
-                && policy::explains_most(n.fit, n.check, p.fit_after, p.check_after)
-        });
-        if !(alone || with_pair) {
-            partial = Some(i);
-            decision.verdict = Verdict::Unexplained;
-            decision.chosen = None;
-        }
-    }
+    let (decision, pair, partial) = verdict(&fitter, &n, &mut ranked, &allowed, opts);
     let c = conclude(&n, &ranked, pair.as_ref(), &decision, &iso, partial);
     // The report's replays with the verdict's effects.
     let after = if c.effects.is_none() {
@@ -334,18 +257,7 @@ pub fn diagnose(
             .collect()
     };
     let elapsed_s = t0.elapsed().as_secs_f64();
-    let verdict_candidate = decision.chosen.map(|i| &ranked[i].candidate);
-    let (form, subsystem) = match (decision.verdict, verdict_candidate) {
-        (Verdict::None, _) => (None, None),
-        (_, Some(c)) => (Some(c.form.clone()), Some(c.subsystem.clone())),
-        (_, None) => (
-            Some(reasons::partial_form(
-                &iso,
-                partial.map(|i| &ranked[i].candidate),
-            )),
-            iso.best().map(|b| b.closure.site.subsystem().to_string()),
-        ),
-    };
+    let (form, subsystem) = form_and_subsystem(&decision, &ranked, &iso, partial);
     let diag = Diagnosis {
         verdict: decision.verdict,
         form,
@@ -380,4 +292,138 @@ pub fn diagnose(
         base: base.clone(),
     };
     (diag, details)
+}
+
+/// Starting points where the gap is a narrow valley (see [`prefit`]): the
+/// motor limit's, when it is among `kinds`.
+fn seeds(kinds: &[EffectKind], fit: &[Run], base: &Plant) -> Effects {
+    let mut seeds = Effects::NONE;
+    if kinds.contains(&EffectKind::MotorLimit) {
+        if let Some(x) = prefit::motor_limit(fit, base) {
+            seeds.set(EffectKind::MotorLimit, Some(&x));
+        }
+    }
+    seeds
+}
+
+/// Whether `parameters` may be named: the isolation allows it, and its
+/// re-estimate is plausible, explains the gap and agrees on the check runs.
+fn parameters_agree(
+    n: &Nominal,
+    iso: &Isolation,
+    ranked: &[CandidateFit],
+    check: &[Run],
+    base: &Plant,
+    dt_s: f64,
+) -> bool {
+    iso.allows(EffectKind::Parameters)
+        && ranked
+            .iter()
+            .find(|c| c.kind == EffectKind::Parameters)
+            .is_some_and(|p| {
+                p.plausible
+                    && policy::explains(
+                        n.fit,
+                        n.check,
+                        p.candidate.fit_after,
+                        p.candidate.check_after,
+                    )
+                    && grey_box::agrees(
+                        p.candidate.parameters.as_deref().unwrap_or_default(),
+                        p.candidate.check_after,
+                        check,
+                        base,
+                        dt_s,
+                    )
+            })
+}
+
+/// The verdict on the ranked candidates: a second effect where the best one
+/// leaves a gap beyond the noise, the best named candidate refined by its
+/// general family, the decision, and an effect named only where its model
+/// explains most of the gap. Returns the decision, the pair and the
+/// partial candidate (for `unexplained`).
+fn verdict(
+    fitter: &Fitter<'_>,
+    n: &Nominal,
+    ranked: &mut [CandidateFit],
+    allowed: &dyn Fn(EffectKind) -> bool,
+    opts: &Options,
+) -> (Decision, Option<PairFit>, Option<usize>) {
+    let explains =
+        |fit_after: f64, check_after: f64| policy::explains(n.fit, n.check, fit_after, check_after);
+    // A second effect where the best single one leaves a gap beyond the noise.
+    let pair = if ranked
+        .first()
+        .is_some_and(|b| policy::wants_pair(n.pooled, b, opts.second_effect))
+    {
+        fitter.best_pair(ranked)
+    } else {
+        None
+    };
+    // The best named candidate that holds, refined by its part's general
+    // family where that holds clearly better on the check runs, before the
+    // verdict is decided: `parameters` is weighed against the effect's best
+    // model, and the effect named stays the same (not within the noise,
+    // where the verdict is `none` whatever the candidates).
+    let best = policy::best_named_holding(n.fit, n.check, ranked, allowed);
+    let mut named = None;
+    if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
+        let r = fitter.refine(
+            &ranked[i],
+            n.fit,
+            n.check,
+            &explains,
+            &policy::general_refines,
+        );
+        if let Some(r) = r {
+            named = Some((i, std::mem::replace(&mut ranked[i], r)));
+        }
+    }
+    let mut decision = policy::decide(n.pooled, n.fit, n.check, ranked, pair.as_ref(), allowed);
+    // A second effect was fitted beside the named form: where it adds
+    // significantly, the verdict is decided on the named forms.
+    if let Some((i, c)) = named.filter(|_| decision.second.is_some_and(|s| s.significant)) {
+        ranked[i] = c;
+        decision = policy::decide(n.pooled, n.fit, n.check, ranked, pair.as_ref(), allowed);
+    }
+    // An effect is named only where its model explains most of the gap
+    // (alone, or with the second effect of the pair it leads).
+    let mut partial = (0..ranked.len()).find(|&i| allowed(ranked[i].kind));
+    if let (Verdict::Effect(k), Some(i)) = (decision.verdict, decision.chosen) {
+        let c = &ranked[i].candidate;
+        let alone = policy::explains_most(n.fit, n.check, c.fit_after, c.check_after);
+        let with_pair = pair.as_ref().is_some_and(|p| {
+            (p.first == k || p.second == k)
+                && policy::explains_most(n.fit, n.check, p.fit_after, p.check_after)
+        });
+        if !(alone || with_pair) {
+            partial = Some(i);
+            decision.verdict = Verdict::Unexplained;
+            decision.chosen = None;
+        }
+    }
+    (decision, pair, partial)
+}
+
+/// The verdict's form and subsystem: its candidate's, or for `unexplained`
+/// the isolation's best closure's with the partial candidate.
+fn form_and_subsystem(
+    decision: &Decision,
+    ranked: &[CandidateFit],
+    iso: &Isolation,
+    partial: Option<usize>,
+) -> (Option<String>, Option<String>) {
+    let verdict_candidate = decision.chosen.map(|i| &ranked[i].candidate);
+    match (decision.verdict, verdict_candidate) {
+        (Verdict::None, _) => (None, None),
+        (_, Some(c)) => (Some(c.form.clone()), Some(c.subsystem.clone())),
+        (_, None) => (
+            Some(reasons::partial_form(
+                iso,
+                partial.map(|i| &ranked[i].candidate),
+            )),
+            iso.best().map(|b| b.closure.site.subsystem().to_string()),
+        ),
+    }
 }
