@@ -19,8 +19,7 @@ use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
 use crate::model::effects::{
     CalChannel, EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
-    ScrewMap, ENVELOPE_SPEEDS_MPS, FILTER_DELAYS_S, FRICTION_SPEEDS_MPS, GAS_TAUS_S,
-    GAS_WEIGHT_SUM_MAX, LEAK_DP_PA, SCREW_FORCES_N, SPECTRUM_YIELDS_PA,
+    ScrewMap, GAS_TAUS_S, GAS_WEIGHT_SUM_MAX, SPECTRUM_YIELDS_PA,
 };
 use crate::model::plant::Plant;
 
@@ -185,7 +184,7 @@ impl Fitter<'_> {
                         if explains(g.gap, g_check) {
                             form = format!(
                                 "{} (the named form: fit shrink {:.0} %, check shrink {:.0} %)",
-                                general_form(k),
+                                k.general_form(),
                                 100.0 * named_fit,
                                 100.0 * Shrink::new(before_check, after_check).shrink,
                             );
@@ -194,7 +193,7 @@ impl Fitter<'_> {
                         } else {
                             form = format!(
                                 "{form} ({} tried: fit shrink {:.0} %, check shrink {:.0} %)",
-                                general_form(k),
+                                k.general_form(),
                                 100.0 * Shrink::new(before_fit, g.gap).shrink,
                                 100.0 * Shrink::new(before_check, g_check).shrink,
                             );
@@ -202,7 +201,7 @@ impl Fitter<'_> {
                     }
                 }
                 progress.done(k.name());
-                let mut params = params_map(&f.effects, k);
+                let mut params = f.effects.param_map(k);
                 if let Some(est) = &estimates {
                     params = estimate_params(est);
                 }
@@ -261,11 +260,11 @@ impl Fitter<'_> {
         let mut out = c.clone();
         out.candidate.form = format!(
             "{} (refines the named form, which held too: fit shrink {:.0} %, check shrink {:.0} %)",
-            general_form(c.kind),
+            c.kind.general_form(),
             100.0 * named.fit_shrink,
             100.0 * named.check_shrink,
         );
-        out.candidate.params = params_map(&g.effects, c.kind);
+        out.candidate.params = g.effects.param_map(c.kind);
         out.candidate.fit_shrink = Shrink::new(before_fit, g.gap).shrink;
         out.candidate.check_shrink = Shrink::new(before_check, g_check).shrink;
         out.candidate.fit_after = g.gap;
@@ -538,21 +537,10 @@ impl Fitter<'_> {
             .min_by(|a, b| a.2.gap.total_cmp(&b.2.gap))?;
         // A first effect in its general family keeps its fit, as one
         // outside the catalogue does.
-        let general = |k: &EffectKind| match k {
-            EffectKind::MotorLimit => start.effects.servo_envelope.is_some(),
-            EffectKind::HoseHysteresis => start.effects.hose_spectrum.is_some(),
-            EffectKind::Friction => start.effects.friction_map.is_some(),
-            EffectKind::Leakage => start.effects.leakage_map.is_some(),
-            EffectKind::AccumulatorThermal => start.effects.gas_relaxation.is_some(),
-            EffectKind::Backlash => start.effects.screw_map.is_some(),
-            EffectKind::SensorDelay => start.effects.sensor_filter.is_some(),
-            EffectKind::SensorCalibration => start.effects.sensor_map.is_some(),
-            _ => false,
-        };
         let free: Vec<EffectKind> = [first, second]
             .into_iter()
             .filter(|k| EffectKind::CATALOGUE.contains(k))
-            .filter(|k| !general(k))
+            .filter(|k| !start.effects.in_general_family(*k))
             .collect();
         let joint = self.fit_effects(&start.effects, &free, 2 * self.max_evals);
         Some(PairFit {
@@ -605,127 +593,4 @@ fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
         | EffectKind::Backlash => named_fit_shrink >= 0.1,
         _ => true,
     }
-}
-
-/// What `form` says of the general family of `kind`.
-fn general_form(kind: EffectKind) -> &'static str {
-    match kind {
-        EffectKind::MotorLimit => {
-            "general: the servo's force envelope over speed, learned from the encoder"
-        }
-        EffectKind::HoseHysteresis => {
-            "general: a Prandtl-Ishlinskii spectrum of the hose wall (five yields, 10 kPa to 1 MPa)"
-        }
-        EffectKind::Friction => {
-            "general: seal friction of any shape over speed, plus a share growing with the line pressures"
-        }
-        EffectKind::Leakage => {
-            "general: internal leakage of any shape over the pressure difference, plus a share growing with the pressure level"
-        }
-        EffectKind::AccumulatorThermal => {
-            "general: the accumulator gas relaxing over six time constants (0.1 to 30 s)"
-        }
-        EffectKind::Backlash => {
-            "general: the coupling's deflection of any shape over the force on the power piston (play, spring, contact)"
-        }
-        EffectKind::SensorDelay => {
-            "general: a sensor's lag of any shape (a non-negative impulse response over 0 to 32 ms)"
-        }
-        EffectKind::SensorCalibration => {
-            "general: a sensor's monotone static map of any shape (piecewise linear, six knots)"
-        }
-        _ => "general",
-    }
-}
-
-/// The parameters of `kind` in `e` by name (for `sensor_calibration` the
-/// offset carries its channel's unit: `offset_m`, `offset_pa`, `offset_n`;
-/// for `motor_limit` in its general family the mass and the available force
-/// at each knot, `force_n_at_<speed>_mps`; for `hose_hysteresis` in its
-/// general family each element's compliance, `c_m3pp_at_yield_<yield>_pa`;
-/// for `friction` and `leakage` in their general families the learned
-/// values at each knot, `force_n_at_<speed>_mmps` and `q_m3ps_at_<dp>_mpa`,
-/// and the pressure terms `n_per_mpa`, `g_m3pspa`; for
-/// `accumulator_thermal` in its general family each relaxation's weight,
-/// `weight_at_tau_<tau>_s`; for `backlash` in its general family the
-/// deflection at each knot, `deflection_m_at_<force>_n`;
-/// for `sensor_delay` in its general family the channel, the mean delay and
-/// each tap's weight, `weight_at_<delay>_ms`; for `sensor_calibration` in
-/// its general family the channel and the map's knots and readings,
-/// `knot<i>_<unit>`, `reading<i>_<unit>`).
-pub fn params_map(e: &Effects, kind: EffectKind) -> BTreeMap<String, f64> {
-    if let (EffectKind::HoseHysteresis, Some(h)) = (kind, e.hose_spectrum) {
-        return SPECTRUM_YIELDS_PA
-            .iter()
-            .zip(h.c_m3pp)
-            .map(|(y, c)| (format!("c_m3pp_at_yield_{y:.0e}_pa"), c))
-            .collect();
-    }
-    if let (EffectKind::MotorLimit, Some(s)) = (kind, e.servo_envelope) {
-        let mut m = BTreeMap::from([("mass_eq_kg".to_string(), s.mass_eq_kg)]);
-        for (v, f) in ENVELOPE_SPEEDS_MPS.iter().zip(s.force_n) {
-            m.insert(format!("force_n_at_{v:.2}_mps"), f);
-        }
-        return m;
-    }
-    if let (EffectKind::Friction, Some(f)) = (kind, e.friction_map) {
-        let mut m = BTreeMap::from([("n_per_mpa".to_string(), f.n_per_mpa)]);
-        for (v, x) in FRICTION_SPEEDS_MPS.iter().zip(f.force_n) {
-            m.insert(format!("force_n_at_{:.1}_mmps", v * 1e3), x);
-        }
-        return m;
-    }
-    if let (EffectKind::Leakage, Some(l)) = (kind, e.leakage_map) {
-        let mut m = BTreeMap::from([("g_m3pspa".to_string(), l.g_m3pspa)]);
-        for (dp, q) in LEAK_DP_PA[1..].iter().zip(l.q_m3ps) {
-            m.insert(format!("q_m3ps_at_{:.2}_mpa", dp * 1e-6), q);
-        }
-        return m;
-    }
-    if let (EffectKind::Backlash, Some(m)) = (kind, e.screw_map) {
-        return SCREW_FORCES_N[1..]
-            .iter()
-            .zip(m.deflection_m)
-            .map(|(f, d)| (format!("deflection_m_at_{f:.0}_n"), d))
-            .collect();
-    }
-    if let (EffectKind::AccumulatorThermal, Some(g)) = (kind, e.gas_relaxation) {
-        return GAS_TAUS_S
-            .iter()
-            .zip(g.weights)
-            .map(|(tau, w)| (format!("weight_at_tau_{tau}_s"), w))
-            .collect();
-    }
-    if let (EffectKind::SensorDelay, Some(f)) = (kind, e.sensor_filter) {
-        let mut m = BTreeMap::from([
-            ("channel".to_string(), f.channel.index() as f64),
-            ("mean_delay_s".to_string(), f.mean_delay_s()),
-        ]);
-        for (d, w) in FILTER_DELAYS_S.iter().zip(f.normalised()) {
-            m.insert(format!("weight_at_{:.0}_ms", d * 1e3), w);
-        }
-        return m;
-    }
-    if let (EffectKind::SensorCalibration, Some(s)) = (kind, e.sensor_map) {
-        let mut m = BTreeMap::from([("channel".to_string(), s.channel.index() as f64)]);
-        let unit = s.channel.unit();
-        for (i, (k, r)) in s.knots_si.iter().zip(s.readings_si).enumerate() {
-            m.insert(format!("knot{i}_{unit}"), *k);
-            m.insert(format!("reading{i}_{unit}"), r);
-        }
-        return m;
-    }
-    if let (EffectKind::SensorCalibration, Some(c)) = (kind, e.sensor_calibration) {
-        return BTreeMap::from([
-            ("channel".to_string(), c.channel.index() as f64),
-            ("gain_1".to_string(), c.gain_1),
-            (format!("offset_{}", c.channel.unit()), c.offset_si),
-            ("quad_1".to_string(), c.quad_1),
-        ]);
-    }
-    kind.params()
-        .iter()
-        .zip(e.get(kind).unwrap_or_default())
-        .map(|(p, v)| (p.name.to_string(), v))
-        .collect()
 }

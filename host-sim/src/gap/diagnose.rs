@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use super::candidates::{params_map, CandidateFit, Fitter, LearnedStarts, PairFit};
+use super::candidates::{CandidateFit, Fitter, LearnedStarts, PairFit};
 use super::closures::{Dependence, Site};
 use super::diagnosis::{Combined, Details, Diagnosis, Second, Verdict};
 use super::grey_box;
@@ -154,11 +154,11 @@ fn conclude(
         }
     };
     if let (Some(p), Some(s)) = (pair, decision.second) {
-        let mut params = params_map(&p.effects, p.first);
-        params.extend(params_map(&p.effects, p.second));
+        let mut params = p.effects.param_map(p.first);
+        params.extend(p.effects.param_map(p.second));
         c.second_effect = Some(Second {
             effect: s.other.name().to_string(),
-            params: params_map(&p.effects, s.other),
+            params: p.effects.param_map(s.other),
             fit_extra_shrink: s.fit_extra,
             check_extra_shrink: s.check_extra,
             significant: s.significant,

@@ -2,10 +2,12 @@
 //!
 //! The effects enter the plant's equations (docs/model.md section 4) at these places:
 //!
-//! * `leakage`: Q1 -= Ql, Q2 += Ql with Ql = G (P1 - P2) (or the general
-//!   family's learned flow);
-//! * `friction`: the Stribeck force (or the general family's learned force)
-//!   is added to the actuating piston's forces;
+//! * a flow between the lines: Q1 -= Ql, Q2 += Ql, Ql the sum of every
+//!   active effect's [`effects::NamedEffect::leak_flow_m3ps`] (`leakage`:
+//!   G (P1 - P2), or its general family's learned flow);
+//! * a force on the actuating piston: every active effect's
+//!   [`effects::NamedEffect::piston_force_n`] is added to its forces
+//!   (`friction`: the Stribeck force, or its general family's learned force);
 //! * `backlash`: the power piston (position xp, an extra state) sits behind
 //!   the motor (the encoder's Xi) by the play's flank the hydraulic force
 //!   pushes it against plus the screw's deflection under that force (a
@@ -273,12 +275,7 @@ impl Rig {
         let f_piston = self.piston_force_n(&x);
         let dvi = effects::servo_accel(e.servo(), vc, x.vi_mps, p.tau_m_s, f_piston);
         let mut fo = self.plant.forces_n(&x, ft_n);
-        if let Some(f) = &e.friction {
-            fo += effects::friction_force_n(f, x.vo_mps);
-        }
-        if let Some(f) = &e.friction_map {
-            fo += f.force(x.vo_mps, x.p1_pa, x.p2_pa);
-        }
+        e.add_piston_forces_n(&mut fo, x.vo_mps, x.p1_pa, x.p2_pa);
         let motor = (x.xi_m, x.vi_mps);
         // The lines see the power piston: behind the backlash at ext.xp_m.
         if e.coupling().is_some() {
@@ -312,13 +309,7 @@ impl Rig {
                 *d = (g.weights[k] * u - s.ext.sg[k]) / effects::GAS_TAUS_S[k];
             }
         }
-        let ql = e
-            .leakage
-            .as_ref()
-            .map_or(0.0, |l| effects::leak_flow_m3ps(l, x.p1_pa, x.p2_pa))
-            + e.leakage_map
-                .as_ref()
-                .map_or(0.0, |l| l.flow(x.p1_pa, x.p2_pa));
+        let ql = e.leak_flow_m3ps(x.p1_pa, x.p2_pa);
         let lines = |vp: f64| self.line_rates(s, &x, vp, qa - qa_nom, ql);
         // Behind a backlash the piston sits where the coupling carries the
         // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt

@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+
 /// Accumulator gas temperature relaxation.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -63,5 +65,40 @@ impl GasRelaxation {
     pub fn is_valid(&self) -> bool {
         self.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
             && self.weights.iter().sum::<f64>() <= GAS_WEIGHT_SUM_MAX * (1.0 + 1e-9)
+    }
+}
+
+impl NamedEffect for AccumulatorThermal {
+    const SUBSYSTEM: &'static str = "accumulator";
+    const PARAMS: &'static [ParamSpec] = &[p("tau_s", 5.0, 0.05, 1000.0)];
+    fn values(&self) -> Vec<f64> {
+        vec![self.tau_s]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self { tau_s: at(0) }
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        if self.tau_s <= 0.0 {
+            return Err(Broken::Requirement("tau_s must be > 0"));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for GasRelaxation {
+    const FORM: &'static str =
+        "general: the accumulator gas relaxing over six time constants (0.1 to 30 s)";
+    const BOTH: &'static str = "the named form and the gas relaxation exclude each other";
+    const REQUIREMENT: &'static str =
+        "gas_relaxation: weights finite, >= 0 and summing to at most 1";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        GAS_TAUS_S
+            .iter()
+            .zip(self.weights)
+            .map(|(tau, w)| (format!("weight_at_tau_{tau}_s"), w))
+            .collect()
     }
 }

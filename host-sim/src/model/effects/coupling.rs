@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+
 use super::common::{interp, segment};
 
 /// Play between motor and power piston.
@@ -116,5 +118,47 @@ impl Coupling<'_> {
             Self::Named(b) => backlash_compliance_mpn(b, f_n),
             Self::Map(m) => m.compliance_mpn(f_n),
         }
+    }
+}
+
+impl NamedEffect for Backlash {
+    const SUBSYSTEM: &'static str = "servo";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("play_m", 50e-6, 0.0, 2e-3),
+        p("stiffness_npm", 2e7, 1e6, 1e10),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.play_m, self.stiffness_npm]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            play_m: at(0),
+            stiffness_npm: at(1),
+        }
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        if self.stiffness_npm <= 0.0 {
+            return Err(Broken::Requirement("stiffness_npm must be > 0"));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for ScrewMap {
+    const FORM: &'static str =
+        "general: the coupling's deflection of any shape over the force on the power piston (play, spring, contact)";
+    const BOTH: &'static str = "the named form and the screw map exclude each other";
+    const REQUIREMENT: &'static str =
+        "screw_map: deflection_m finite, non-negative, non-decreasing, the first > 0, \
+         each at most 0.02 m";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        SCREW_FORCES_N[1..]
+            .iter()
+            .zip(self.deflection_m)
+            .map(|(f, d)| (format!("deflection_m_at_{f:.0}_n"), d))
+            .collect()
     }
 }

@@ -2,6 +2,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, NamedEffect, ParamSpec, KAPPA_MAX};
+
 /// Entrained air.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -23,4 +25,24 @@ pub fn compressibility_ppa(a: &Air, beta_e_pa: f64, p_pa: f64, p_atm_pa: f64) ->
     // The absolute pressure is kept above 5 % of atmospheric (no vacuum).
     let p_abs = (p_pa + p_atm_pa).max(0.05 * p_atm_pa);
     1.0 / beta_e_pa + a.fraction / (a.kappa * p_abs) * libm::pow(p_atm_pa / p_abs, 1.0 / a.kappa)
+}
+
+impl NamedEffect for Air {
+    const SUBSYSTEM: &'static str = "oil";
+    const PARAMS: &'static [ParamSpec] = &[p("fraction", 0.005, 0.0, 0.1)];
+    fn values(&self) -> Vec<f64> {
+        vec![self.fraction]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            fraction: at(0),
+            kappa: default_kappa(),
+        }
+    }
+    fn check_bounds(&self) -> Result<(), Broken> {
+        if !(1.0..=KAPPA_MAX).contains(&self.kappa) {
+            return Err(Broken::Kappa(self.kappa));
+        }
+        Ok(())
+    }
 }

@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
+
 /// Rate-independent hose-wall hysteresis.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -62,5 +64,53 @@ impl HysteresisSpectrum {
             stuck_share: 0.0,
             yield_pa: SPECTRUM_YIELDS_PA[i],
         }
+    }
+}
+
+impl NamedEffect for HoseHysteresis {
+    const SUBSYSTEM: &'static str = "hose";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("c_m3pp", 2e-13, 0.0, 5e-12),
+        p("stuck_share", 0.0, 0.0, 1.0),
+        p("yield_pa", 1e5, 1e3, 2e6),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.c_m3pp, self.stuck_share, self.yield_pa]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            c_m3pp: at(0),
+            stuck_share: at(1),
+            yield_pa: at(2),
+        }
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        if self.stuck_share > 1.0 || self.yield_pa <= 0.0 {
+            return Err(Broken::Requirement(
+                "stuck_share must be <= 1 and yield_pa > 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for HysteresisSpectrum {
+    const FORM: &'static str =
+        "general: a Prandtl-Ishlinskii spectrum of the hose wall (five yields, 10 kPa to 1 MPa)";
+    const BOTH: &'static str = "the named form and the hysteresis spectrum exclude each other";
+    const REQUIREMENT: &'static str = "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11";
+    /// Every compliance within [0, VALID_SPAN times the named form's largest].
+    fn family_valid(&self) -> bool {
+        let most = VALID_SPAN * HoseHysteresis::PARAMS[0].max;
+        self.c_m3pp
+            .iter()
+            .all(|c| c.is_finite() && (0.0..=most).contains(c))
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        SPECTRUM_YIELDS_PA
+            .iter()
+            .zip(self.c_m3pp)
+            .map(|(y, c)| (format!("c_m3pp_at_yield_{y:.0e}_pa"), c))
+            .collect()
     }
 }

@@ -33,15 +33,45 @@
 //! (backlash), `fluid` (air), `hose` (hose hysteresis), `accumulator` (its
 //! thermal relaxation), `servo` (motor limit), `sensors` (delay,
 //! calibration) and `parameters`, with `common` for the piecewise-linear
-//! maps they share; everything is re-exported here. This file holds what spans them: the set of active
-//! effects ([`Effects`]), the catalogue of identifiers and parameters
-//! ([`EffectKind`]), their validation and errors.
+//! maps they share; everything is re-exported here. Each form carries its
+//! own catalogue entry ([`NamedEffect`]: part of the rig, parameters with
+//! their ranges, checks, report names, and the terms it adds to the plant's
+//! equations), each general family its own ([`GeneralFamily`]); both traits
+//! live in `catalogue`, below the part files. This file
+//! holds what spans them: one row per effect in `effects!`, from which
+//! the set of active effects ([`Effects`]), the identifiers
+//! ([`EffectKind`]), their dispatch and validation are made, and the
+//! errors.
+//!
+//! # Adding an effect
+//!
+//! A new effect that puts a force on the actuating piston or lets oil from
+//! line 1 to line 2 touches two files: its part file (the form's struct
+//! with `Deserialize`, and `impl NamedEffect` with its part, its
+//! parameters, how it is built from them, its checks and its hook,
+//! [`NamedEffect::piston_force_n`] or [`NamedEffect::leak_flow_m3ps`]) and
+//! one row of `effects!` below (`Kind => field: Form;`, with
+//! `, family_field: Family` for a general family that implements
+//! [`GeneralFamily`]). From these follow its TOML table
+//! `[plant.effects.<field>]`, `--effect <field>:...`, validation, the rig's
+//! equations ([`crate::model::rig`] adds every effect's hooks), the
+//! diagnosis's bounded fit over its parameters and its report names. A
+//! part file of its own adds its `mod` and `pub use` lines beside the row.
+//! Two things stay outside on purpose: an effect that acts elsewhere in the
+//! equations (the servo, the coupling, the lines' compliance, states of its
+//! own) also needs its term in `rig.rs`, and for the diagnosis to *name*
+//! it, the equation and dependence it shows in must map to it in the
+//! naming table of `gap/closures.rs` (docs/gap.md's table); a general
+//! family's learned fit lives in `gap/candidates.rs`.
+
+use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
 use crate::io::num::Num;
 
 mod accumulator;
+mod catalogue;
 mod common;
 mod coupling;
 mod fluid;
@@ -52,6 +82,7 @@ mod sensors;
 mod servo;
 
 pub use accumulator::*;
+pub use catalogue::{Broken, GeneralFamily, NamedEffect, ParamSpec, KAPPA_MAX, VALID_SPAN};
 pub use coupling::*;
 pub use fluid::*;
 pub use hose::*;
@@ -62,268 +93,292 @@ pub use servo::*;
 
 pub(crate) use common::segment;
 
-/// The set of active effects (all `None`: the nominal plant).
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Effects {
-    /// `leakage`.
-    pub leakage: Option<Leakage>,
-    /// `leakage` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub leakage_map: Option<LeakageMap>,
-    /// `friction`.
-    pub friction: Option<Friction>,
-    /// `friction` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub friction_map: Option<FrictionMap>,
-    /// `backlash`.
-    pub backlash: Option<Backlash>,
-    /// `backlash` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub screw_map: Option<ScrewMap>,
-    /// `air`.
-    pub air: Option<Air>,
-    /// `sensor_delay`.
-    pub sensor_delay: Option<SensorDelay>,
-    /// `sensor_delay` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub sensor_filter: Option<SensorFilter>,
-    /// `motor_limit`.
-    pub motor_limit: Option<MotorLimit>,
-    /// `motor_limit` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub servo_envelope: Option<ServoEnvelope>,
-    /// `hose_hysteresis`.
-    pub hose_hysteresis: Option<HoseHysteresis>,
-    /// `hose_hysteresis` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub hose_spectrum: Option<HysteresisSpectrum>,
-    /// `accumulator_thermal`.
-    pub accumulator_thermal: Option<AccumulatorThermal>,
-    /// `accumulator_thermal` in its general family (exclusive with the named
-    /// form).
-    #[serde(default)]
-    pub gas_relaxation: Option<GasRelaxation>,
-    /// `sensor_calibration`.
-    pub sensor_calibration: Option<SensorCalibration>,
-    /// `sensor_calibration` in its general family (exclusive with the named form).
-    #[serde(default)]
-    pub sensor_map: Option<SensorMap>,
-    /// `parameters`.
-    pub parameters: Option<ParameterRatios>,
+/// One for each effect of a row of `effects!`.
+macro_rules! one {
+    ($x:ident) => {
+        1
+    };
 }
 
-/// The effect identifiers of docs/model.md section 12.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum EffectKind {
+/// The catalogue from one row per effect: `Kind => field: NamedEffect` and,
+/// where the effect has one, `, family_field: GeneralFamily`. It makes the
+/// set of active effects ([`Effects`]), the identifiers ([`EffectKind`]) and
+/// everything that goes through every effect (names, parameters, get, set,
+/// checks), in the rows' order (docs/model.md section 12).
+macro_rules! effects {
+    ($(
+        $(#[doc = $doc:literal])*
+        $kind:ident => $field:ident: $named:ty $(, $family:ident: $general:ty)?;
+    )*) => {
+        /// The set of active effects (all `None`: the nominal plant).
+        #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+        #[serde(deny_unknown_fields)]
+        pub struct Effects {
+            $(
+                #[doc = concat!("`", stringify!($field), "`.")]
+                pub $field: Option<$named>,
+                $(
+                    #[doc = concat!("`", stringify!($field),
+                        "` in its general family (exclusive with the named form).")]
+                    #[serde(default)]
+                    pub $family: Option<$general>,
+                )?
+            )*
+        }
+
+        /// The effect identifiers of docs/model.md section 12.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum EffectKind {
+            $( $(#[doc = $doc])* $kind, )*
+        }
+
+        /// Number of effects the diagnosis fits by a bounded search.
+        const N_CATALOGUE: usize = 0 $(+ <$named as NamedEffect>::SEARCHED as usize)*;
+
+        impl EffectKind {
+            /// All effects, in the order of docs/model.md section 12.
+            pub const ALL: [Self; 0 $(+ one!($kind))*] = [$(Self::$kind),*];
+
+            /// The effects of the catalogue: each a named parametric form that
+            /// the diagnosis fits by a bounded search ([`Self::ALL`] but those
+            /// with fits of their own, `sensor_calibration` and `parameters`).
+            pub const CATALOGUE: [Self; N_CATALOGUE] = {
+                let mut out = [Self::ALL[0]; N_CATALOGUE];
+                let mut i = 0;
+                $(
+                    if <$named as NamedEffect>::SEARCHED {
+                        out[i] = Self::$kind;
+                        i += 1;
+                    }
+                )*
+                let _ = i;
+                out
+            };
+
+            /// The part of the rig the effect belongs to: `seals`, `servo`,
+            /// `oil`, `sensors`, `hose`, `accumulator`, or `plant` (its nominal
+            /// parameters throughout).
+            pub fn subsystem(self) -> &'static str {
+                match self {
+                    $(Self::$kind => <$named as NamedEffect>::SUBSYSTEM,)*
+                }
+            }
+
+            /// The identifier of docs/model.md section 12.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$kind => stringify!($field),)*
+                }
+            }
+
+            /// The parameters, in the order [`Effects::set`] takes them.
+            pub fn params(self) -> &'static [ParamSpec] {
+                match self {
+                    $(Self::$kind => <$named as NamedEffect>::PARAMS,)*
+                }
+            }
+
+            /// What the diagnosis's `form` says of the effect's general
+            /// family (`general` where it has none).
+            pub fn general_form(self) -> &'static str {
+                match self {
+                    $(Self::$kind => {
+                        $( return <$general as GeneralFamily>::FORM; )?
+                        #[allow(unreachable_code)]
+                        "general"
+                    })*
+                }
+            }
+
+            /// Whether [`Effects::validate`] checks the parameters against
+            /// their ranges.
+            fn range_checked(self) -> bool {
+                match self {
+                    $(Self::$kind => <$named as NamedEffect>::RANGE_CHECKED,)*
+                }
+            }
+        }
+
+        impl Effects {
+            /// No effect: the nominal plant.
+            pub const NONE: Self = Self {
+                $( $field: None, $( $family: None, )? )*
+            };
+
+            /// The parameters of effect `k` if active, in [`EffectKind::params`] order.
+            pub fn get(&self, k: EffectKind) -> Option<Vec<f64>> {
+                match k {
+                    $(EffectKind::$kind => self.$field.map(|f| f.values()),)*
+                }
+            }
+
+            /// Switch effect `k` on with `v` (in [`EffectKind::params`] order;
+            /// missing entries take the typical value), or off with `None`.
+            pub fn set(&mut self, k: EffectKind, v: Option<&[f64]>) {
+                let specs = k.params();
+                match k {
+                    $(EffectKind::$kind => {
+                        self.$field = v.map(|v| {
+                            let at = |i: usize| v.get(i).copied().unwrap_or(specs[i].typical);
+                            <$named as NamedEffect>::from_values(&at)
+                        })
+                    })*
+                }
+            }
+
+            /// Whether effect `k` is on in its general family.
+            pub fn in_general_family(&self, k: EffectKind) -> bool {
+                match k {
+                    $(EffectKind::$kind => {
+                        $( return self.$family.is_some(); )?
+                        #[allow(unreachable_code)]
+                        false
+                    })*
+                }
+            }
+
+            /// The parameters of `k` by name, as reports give them: its
+            /// general family's ([`GeneralFamily::param_map`]) where that is
+            /// on, else its named form's ([`NamedEffect::param_map`], or each
+            /// of [`EffectKind::params`] with its value; empty when off).
+            pub fn param_map(&self, k: EffectKind) -> BTreeMap<String, f64> {
+                let special = match k {
+                    $(EffectKind::$kind => {
+                        $(
+                            if let Some(g) = &self.$family {
+                                return g.param_map().into_iter().collect();
+                            }
+                        )?
+                        self.$field.and_then(|x| x.param_map())
+                    })*
+                };
+                if let Some(m) = special {
+                    return m.into_iter().collect();
+                }
+                k.params()
+                    .iter()
+                    .zip(self.get(k).unwrap_or_default())
+                    .map(|(p, v)| (p.name.to_string(), v))
+                    .collect()
+            }
+
+            /// Add the force every active effect puts on the actuating
+            /// piston ([`NamedEffect::piston_force_n`]) to `f_n`, in the rows'
+            /// order.
+            pub fn add_piston_forces_n(
+                &self,
+                f_n: &mut f64,
+                vo_mps: f64,
+                p1_pa: f64,
+                p2_pa: f64,
+            ) {
+                let (v, p1, p2) = (vo_mps, p1_pa, p2_pa);
+                $(
+                    if let Some(f) = self.$field.and_then(|x| x.piston_force_n(v, p1, p2)) {
+                        *f_n += f;
+                    }
+                    $(
+                        if let Some(f) = self.$family.and_then(|g| g.piston_force_n(v, p1, p2)) {
+                            *f_n += f;
+                        }
+                    )?
+                )*
+            }
+
+            /// The flow from line 1 to line 2 every active effect lets
+            /// through ([`NamedEffect::leak_flow_m3ps`]), summed in the rows'
+            /// order, m^3/s.
+            pub fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> f64 {
+                let mut q_m3ps = 0.0;
+                $(
+                    if let Some(q) = self.$field.and_then(|x| x.leak_flow_m3ps(p1_pa, p2_pa)) {
+                        q_m3ps += q;
+                    }
+                    $(
+                        if let Some(q) = self.$family.and_then(|g| g.leak_flow_m3ps(p1_pa, p2_pa)) {
+                            q_m3ps += q;
+                        }
+                    )?
+                )*
+                q_m3ps
+            }
+
+            /// Every active named form's bounds beyond its ranges.
+            fn check_bounds(&self) -> Result<(), EffectError> {
+                $(
+                    if let Some(x) = &self.$field {
+                        x.check_bounds().map_err(|b| b.of(EffectKind::$kind))?;
+                    }
+                )*
+                Ok(())
+            }
+
+            /// Each general family: valid when on, and not on together with
+            /// its named form.
+            fn check_families(&self) -> Result<(), EffectError> {
+                $($(
+                    if let Some(g) = &self.$family {
+                        if self.$field.is_some() {
+                            return EffectError::constraint(
+                                EffectKind::$kind,
+                                <$general as GeneralFamily>::BOTH,
+                            );
+                        }
+                        if !g.family_valid() {
+                            return EffectError::constraint(
+                                EffectKind::$kind,
+                                <$general as GeneralFamily>::REQUIREMENT,
+                            );
+                        }
+                    }
+                )?)*
+                Ok(())
+            }
+
+            /// The named forms' relations between their parameters.
+            fn check_named_forms(&self) -> Result<(), EffectError> {
+                $(
+                    if let Some(x) = &self.$field {
+                        x.check_relations().map_err(|b| b.of(EffectKind::$kind))?;
+                    }
+                )*
+                Ok(())
+            }
+        }
+    };
+}
+
+effects! {
     /// Internal leakage.
-    Leakage,
+    Leakage => leakage: Leakage, leakage_map: LeakageMap;
     /// Seal friction.
-    Friction,
+    Friction => friction: Friction, friction_map: FrictionMap;
     /// Ball-screw play.
-    Backlash,
+    Backlash => backlash: Backlash, screw_map: ScrewMap;
     /// Entrained air.
-    Air,
+    Air => air: Air;
     /// Measurement delay.
-    SensorDelay,
+    SensorDelay => sensor_delay: SensorDelay, sensor_filter: SensorFilter;
     /// Servo limits.
-    MotorLimit,
+    MotorLimit => motor_limit: MotorLimit, servo_envelope: ServoEnvelope;
     /// Hose hysteresis.
-    HoseHysteresis,
+    HoseHysteresis => hose_hysteresis: HoseHysteresis, hose_spectrum: HysteresisSpectrum;
     /// Accumulator thermal drift.
-    AccumulatorThermal,
+    AccumulatorThermal => accumulator_thermal: AccumulatorThermal, gas_relaxation: GasRelaxation;
     /// A sensor's calibration.
-    SensorCalibration,
+    SensorCalibration => sensor_calibration: SensorCalibration, sensor_map: SensorMap;
     /// The nominal parameters re-estimated.
-    Parameters,
-}
-
-/// One parameter of an effect: name (with unit), typical value, fit bounds.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ParamSpec {
-    /// Name with unit suffix, as in the configuration files.
-    pub name: &'static str,
-    /// A typical magnitude on a rig of this size.
-    pub typical: f64,
-    /// Smallest value a fit may take.
-    pub min: f64,
-    /// Largest value a fit may take.
-    pub max: f64,
-}
-
-/// How far beyond its fit range a parameter may be set: an effect can be
-/// emulated stronger than the diagnosis would fit it, but not by orders of
-/// magnitude (a leakage conductance of 1 instead of 1e-13 makes the plant
-/// non-finite after one step).
-pub const VALID_SPAN: f64 = 10.0;
-
-/// Largest polytropic index of the entrained air (a monatomic gas, 5/3).
-pub const KAPPA_MAX: f64 = 5.0 / 3.0;
-
-const fn p(name: &'static str, typical: f64, min: f64, max: f64) -> ParamSpec {
-    ParamSpec {
-        name,
-        typical,
-        min,
-        max,
-    }
+    Parameters => parameters: ParameterRatios;
 }
 
 impl EffectKind {
-    /// All effects, in the order of docs/model.md section 12.
-    pub const ALL: [Self; 10] = [
-        Self::Leakage,
-        Self::Friction,
-        Self::Backlash,
-        Self::Air,
-        Self::SensorDelay,
-        Self::MotorLimit,
-        Self::HoseHysteresis,
-        Self::AccumulatorThermal,
-        Self::SensorCalibration,
-        Self::Parameters,
-    ];
-
-    /// The effects of the catalogue: each a named parametric form that the
-    /// diagnosis fits by a bounded search ([`Self::ALL`] but
-    /// `sensor_calibration` and `parameters`, which have fits of their own).
-    pub const CATALOGUE: [Self; 8] = [
-        Self::Leakage,
-        Self::Friction,
-        Self::Backlash,
-        Self::Air,
-        Self::SensorDelay,
-        Self::MotorLimit,
-        Self::HoseHysteresis,
-        Self::AccumulatorThermal,
-    ];
-
-    /// The part of the rig the effect belongs to: `seals`, `servo`,
-    /// `oil`, `sensors`, `hose`, `accumulator`, or `plant` (its nominal
-    /// parameters throughout).
-    pub fn subsystem(self) -> &'static str {
-        match self {
-            Self::Leakage | Self::Friction => "seals",
-            Self::Backlash | Self::MotorLimit => "servo",
-            Self::Air => "oil",
-            Self::SensorDelay | Self::SensorCalibration => "sensors",
-            Self::HoseHysteresis => "hose",
-            Self::AccumulatorThermal => "accumulator",
-            Self::Parameters => "plant",
-        }
-    }
-
-    /// The identifier of docs/model.md section 12.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Leakage => "leakage",
-            Self::Friction => "friction",
-            Self::Backlash => "backlash",
-            Self::Air => "air",
-            Self::SensorDelay => "sensor_delay",
-            Self::MotorLimit => "motor_limit",
-            Self::HoseHysteresis => "hose_hysteresis",
-            Self::AccumulatorThermal => "accumulator_thermal",
-            Self::SensorCalibration => "sensor_calibration",
-            Self::Parameters => "parameters",
-        }
-    }
-
     /// Parse an identifier.
     pub fn by_name(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == s)
     }
-
-    /// The parameters, in the order [`Effects::set`] takes them.
-    pub fn params(self) -> &'static [ParamSpec] {
-        match self {
-            Self::Leakage => LEAKAGE_PARAMS,
-            Self::Friction => FRICTION_PARAMS,
-            Self::Backlash => BACKLASH_PARAMS,
-            Self::Air => AIR_PARAMS,
-            Self::SensorDelay => SENSOR_DELAY_PARAMS,
-            Self::MotorLimit => MOTOR_LIMIT_PARAMS,
-            Self::HoseHysteresis => HOSE_HYSTERESIS_PARAMS,
-            Self::AccumulatorThermal => ACCUMULATOR_THERMAL_PARAMS,
-            Self::SensorCalibration => SENSOR_CALIBRATION_PARAMS,
-            Self::Parameters => PARAMETERS_PARAMS,
-        }
-    }
 }
 
-const LEAKAGE_PARAMS: &[ParamSpec] = &[
-    p("g_m3pspa", 1e-13, 1e-16, 1e-11),
-    p("exponent", 1.0, 0.5, 1.0),
-];
-const FRICTION_PARAMS: &[ParamSpec] = &[
-    p("coulomb_n", 30.0, 0.0, 500.0),
-    p("static_n", 45.0, 0.0, 800.0),
-    p("stribeck_mps", 2e-3, 1e-4, 5e-2),
-];
-const BACKLASH_PARAMS: &[ParamSpec] = &[
-    p("play_m", 50e-6, 0.0, 2e-3),
-    p("stiffness_npm", 2e7, 1e6, 1e10),
-];
-const AIR_PARAMS: &[ParamSpec] = &[p("fraction", 0.005, 0.0, 0.1)];
-const SENSOR_DELAY_PARAMS: &[ParamSpec] = &[
-    p("xo_delay_s", 3e-3, 0.0, 0.1),
-    p("xo_tau_s", 2e-3, 0.0, 0.1),
-    p("p_tau_s", 1e-3, 0.0, 0.1),
-];
-const MOTOR_LIMIT_PARAMS: &[ParamSpec] = &[
-    p("force_max_n", 2000.0, 50.0, 1e5),
-    p("mass_eq_kg", 200.0, 5.0, 1e5),
-    p("speed_max_mps", 0.1, 0.005, 0.1),
-];
-const HOSE_HYSTERESIS_PARAMS: &[ParamSpec] = &[
-    p("c_m3pp", 2e-13, 0.0, 5e-12),
-    p("stuck_share", 0.0, 0.0, 1.0),
-    p("yield_pa", 1e5, 1e3, 2e6),
-];
-const ACCUMULATOR_THERMAL_PARAMS: &[ParamSpec] = &[p("tau_s", 5.0, 0.05, 1000.0)];
-/// The offset and the nonlinearity are signed: [`Effects::validate`] checks
-/// them against the channel's span, not these bounds.
-const SENSOR_CALIBRATION_PARAMS: &[ParamSpec] = &[
-    p("channel", 0.0, 0.0, 4.0),
-    p("gain_1", 1.0, 0.5, 2.0),
-    p("offset_si", 0.0, 0.0, 0.0),
-    p("quad_1", 0.0, 0.0, 0.0),
-];
-/// Smallest and largest ratio of a re-estimated parameter.
-pub const RATIO_BOUNDS: (f64, f64) = (1.0 / 3.0, 3.0);
-const PARAMETERS_PARAMS: &[ParamSpec] = &[
-    p("m_kg_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("beta_e_pa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("hose_c_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("c_visc_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("tau_m_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("p_acc0_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-    p("aa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
-];
-
 impl Effects {
-    /// No effect: the nominal plant.
-    pub const NONE: Self = Self {
-        leakage: None,
-        leakage_map: None,
-        friction: None,
-        friction_map: None,
-        backlash: None,
-        screw_map: None,
-        air: None,
-        sensor_delay: None,
-        sensor_filter: None,
-        motor_limit: None,
-        servo_envelope: None,
-        hose_hysteresis: None,
-        hose_spectrum: None,
-        accumulator_thermal: None,
-        gas_relaxation: None,
-        sensor_calibration: None,
-        sensor_map: None,
-        parameters: None,
-    };
-
     /// True when no effect is active.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
@@ -344,136 +399,6 @@ impl Effects {
             .into_iter()
             .filter(|k| self.get(*k).is_some())
             .collect()
-    }
-
-    /// The parameters of effect `k` if active, in [`EffectKind::params`] order.
-    pub fn get(&self, k: EffectKind) -> Option<Vec<f64>> {
-        Some(match k {
-            EffectKind::Leakage => {
-                let l = self.leakage?;
-                vec![l.g_m3pspa, l.exponent]
-            }
-            EffectKind::Friction => {
-                let f = self.friction?;
-                vec![f.coulomb_n, f.static_n, f.stribeck_mps]
-            }
-            EffectKind::Backlash => {
-                let b = self.backlash?;
-                vec![b.play_m, b.stiffness_npm]
-            }
-            EffectKind::Air => vec![self.air?.fraction],
-            EffectKind::SensorDelay => {
-                let s = self.sensor_delay?;
-                vec![s.xo_delay_s, s.xo_tau_s, s.p_tau_s]
-            }
-            EffectKind::MotorLimit => {
-                let m = self.motor_limit?;
-                vec![m.force_max_n, m.mass_eq_kg, m.speed_max_mps]
-            }
-            EffectKind::HoseHysteresis => {
-                let h = self.hose_hysteresis?;
-                vec![h.c_m3pp, h.stuck_share, h.yield_pa]
-            }
-            EffectKind::AccumulatorThermal => vec![self.accumulator_thermal?.tau_s],
-            EffectKind::SensorCalibration => {
-                let c = self.sensor_calibration?;
-                vec![c.channel.index() as f64, c.gain_1, c.offset_si, c.quad_1]
-            }
-            EffectKind::Parameters => self.parameters?.to_array().to_vec(),
-        })
-    }
-
-    /// Switch effect `k` on with `v` (in [`EffectKind::params`] order; missing
-    /// entries take the typical value), or off with `None`.
-    pub fn set(&mut self, k: EffectKind, v: Option<&[f64]>) {
-        let Some(v) = v else {
-            match k {
-                EffectKind::Leakage => self.leakage = None,
-                EffectKind::Friction => self.friction = None,
-                EffectKind::Backlash => self.backlash = None,
-                EffectKind::Air => self.air = None,
-                EffectKind::SensorDelay => self.sensor_delay = None,
-                EffectKind::MotorLimit => self.motor_limit = None,
-                EffectKind::HoseHysteresis => self.hose_hysteresis = None,
-                EffectKind::AccumulatorThermal => self.accumulator_thermal = None,
-                EffectKind::SensorCalibration => self.sensor_calibration = None,
-                EffectKind::Parameters => self.parameters = None,
-            }
-            return;
-        };
-        let specs = k.params();
-        let at = |i: usize| v.get(i).copied().unwrap_or(specs[i].typical);
-        match k {
-            EffectKind::Leakage => {
-                self.leakage = Some(Leakage {
-                    g_m3pspa: at(0),
-                    exponent: at(1),
-                })
-            }
-            EffectKind::Friction => {
-                self.friction = Some(Friction {
-                    coulomb_n: at(0),
-                    static_n: at(1),
-                    stribeck_mps: at(2),
-                })
-            }
-            EffectKind::Backlash => {
-                self.backlash = Some(Backlash {
-                    play_m: at(0),
-                    stiffness_npm: at(1),
-                })
-            }
-            EffectKind::Air => {
-                self.air = Some(Air {
-                    fraction: at(0),
-                    kappa: fluid::default_kappa(),
-                })
-            }
-            EffectKind::SensorDelay => {
-                self.sensor_delay = Some(SensorDelay {
-                    xo_delay_s: at(0),
-                    xo_tau_s: at(1),
-                    p_tau_s: at(2),
-                })
-            }
-            EffectKind::MotorLimit => {
-                self.motor_limit = Some(MotorLimit {
-                    force_max_n: at(0),
-                    mass_eq_kg: at(1),
-                    speed_max_mps: at(2),
-                })
-            }
-            EffectKind::HoseHysteresis => {
-                self.hose_hysteresis = Some(HoseHysteresis {
-                    c_m3pp: at(0),
-                    stuck_share: at(1),
-                    yield_pa: at(2),
-                })
-            }
-            EffectKind::AccumulatorThermal => {
-                self.accumulator_thermal = Some(AccumulatorThermal { tau_s: at(0) })
-            }
-            EffectKind::SensorCalibration => {
-                // A channel index off the list is kept out of range as NaN
-                // gain, which `validate` refuses.
-                let ch = at(0);
-                let channel = CalChannel::from_index(ch.round().max(0.0) as usize);
-                self.sensor_calibration = Some(SensorCalibration {
-                    channel: channel.unwrap_or(CalChannel::Xo),
-                    gain_1: if channel.is_some() && ch.fract() == 0.0 {
-                        at(1)
-                    } else {
-                        f64::NAN
-                    },
-                    offset_si: at(2),
-                    quad_1: at(3),
-                })
-            }
-            EffectKind::Parameters => {
-                let a: [f64; 7] = std::array::from_fn(at);
-                self.parameters = Some(ParameterRatios::from_array(a))
-            }
-        }
     }
 
     /// Parse a command-line effect: `name` (typical parameters) or
@@ -524,12 +449,11 @@ impl Effects {
         self.check_named_forms()
     }
 
-    /// Every parameter of an active named effect within its range, and the
-    /// bounds of air, friction and the motor limit.
+    /// Every parameter of an active named effect within its range, then
+    /// each named form's further bounds ([`NamedEffect::check_bounds`]).
     fn check_ranges(&self) -> Result<(), EffectError> {
-        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
         for k in self.active() {
-            if k == EffectKind::SensorCalibration {
+            if !k.range_checked() {
                 continue;
             }
             let v = self.get(k).unwrap_or_default();
@@ -546,160 +470,7 @@ impl Effects {
                 }
             }
         }
-        if let Some(a) = self.air {
-            if !(1.0..=KAPPA_MAX).contains(&a.kappa) {
-                return Err(EffectError::Kappa(a.kappa));
-            }
-        }
-        if let Some(f) = self.friction {
-            if f.stribeck_mps <= 0.0 {
-                return constraint(EffectKind::Friction, "stribeck_mps must be > 0");
-            }
-        }
-        if let Some(m) = self.motor_limit {
-            if m.force_max_n <= 0.0 || m.mass_eq_kg <= 0.0 || m.speed_max_mps <= 0.0 {
-                return constraint(
-                    EffectKind::MotorLimit,
-                    "force_max_n, mass_eq_kg and speed_max_mps must be > 0",
-                );
-            }
-        }
-        Ok(())
-    }
-
-    /// Each general family: valid when on, and not on together with its
-    /// named form.
-    fn check_families(&self) -> Result<(), EffectError> {
-        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
-        // Each general family: its validity when on, whether its named form
-        // is on too, and what to say in either case.
-        let motor_most = VALID_SPAN * MOTOR_LIMIT_PARAMS[0].max;
-        let hose_most = VALID_SPAN * HOSE_HYSTERESIS_PARAMS[0].max;
-        let families = [
-            (
-                EffectKind::MotorLimit,
-                self.servo_envelope.map(|s| {
-                    s.is_valid()
-                        && s.force_n[0] <= motor_most
-                        && s.mass_eq_kg <= VALID_SPAN * MOTOR_LIMIT_PARAMS[1].max
-                }),
-                self.motor_limit.is_some(),
-                "the named form and the servo envelope exclude each other",
-                "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
-                 and non-increasing with speed",
-            ),
-            (
-                EffectKind::HoseHysteresis,
-                self.hose_spectrum.map(|h| {
-                    h.c_m3pp
-                        .iter()
-                        .all(|c| c.is_finite() && (0.0..=hose_most).contains(c))
-                }),
-                self.hose_hysteresis.is_some(),
-                "the named form and the hysteresis spectrum exclude each other",
-                "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11",
-            ),
-            (
-                EffectKind::Backlash,
-                self.screw_map.map(|m| m.is_valid()),
-                self.backlash.is_some(),
-                "the named form and the screw map exclude each other",
-                "screw_map: deflection_m finite, non-negative, non-decreasing, the first > 0, \
-                 each at most 0.02 m",
-            ),
-            (
-                EffectKind::AccumulatorThermal,
-                self.gas_relaxation.map(|g| g.is_valid()),
-                self.accumulator_thermal.is_some(),
-                "the named form and the gas relaxation exclude each other",
-                "gas_relaxation: weights finite, >= 0 and summing to at most 1",
-            ),
-            (
-                EffectKind::Leakage,
-                self.leakage_map.map(|l| l.is_valid()),
-                self.leakage.is_some(),
-                "the named form and the leakage map exclude each other",
-                "leakage_map: q_m3ps and g_m3pspa must be finite and >= 0",
-            ),
-            (
-                EffectKind::Friction,
-                self.friction_map.map(|f| f.is_valid()),
-                self.friction.is_some(),
-                "the named form and the friction map exclude each other",
-                "friction_map: force_n and n_per_mpa must be finite and >= 0",
-            ),
-            (
-                EffectKind::SensorDelay,
-                self.sensor_filter.map(|f| f.is_valid()),
-                self.sensor_delay.is_some(),
-                "the named form and the sensor filter exclude each other",
-                "sensor_filter: channel xo_m, xi_m, p1_pa or p2_pa, weights non-negative \
-                 and not all zero",
-            ),
-            (
-                EffectKind::SensorCalibration,
-                self.sensor_map.map(|m| m.is_valid()),
-                self.sensor_calibration.is_some(),
-                "the named form and the sensor map exclude each other",
-                "sensor_map: knots_si and readings_si \
-                 strictly increasing, each reading within the channel's span of its knot",
-            ),
-        ];
-        for (kind, valid, named, both, invalid) in families {
-            match valid {
-                Some(_) if named => return constraint(kind, both),
-                Some(false) => return constraint(kind, invalid),
-                _ => {}
-            }
-        }
-        Ok(())
-    }
-
-    /// The named forms' relations between their parameters.
-    fn check_named_forms(&self) -> Result<(), EffectError> {
-        let constraint = |kind, requirement| Err(EffectError::Constraint { kind, requirement });
-        if let Some(l) = self.leakage {
-            if !(l.exponent > 0.0 && l.exponent <= 2.0) {
-                return constraint(EffectKind::Leakage, "exponent must be in (0, 2]");
-            }
-        }
-        if let Some(b) = self.backlash {
-            if b.stiffness_npm <= 0.0 {
-                return constraint(EffectKind::Backlash, "stiffness_npm must be > 0");
-            }
-        }
-        if let Some(h) = self.hose_hysteresis {
-            if h.stuck_share > 1.0 || h.yield_pa <= 0.0 {
-                return constraint(
-                    EffectKind::HoseHysteresis,
-                    "stuck_share must be <= 1 and yield_pa > 0",
-                );
-            }
-        }
-        if let Some(t) = self.accumulator_thermal {
-            if t.tau_s <= 0.0 {
-                return constraint(EffectKind::AccumulatorThermal, "tau_s must be > 0");
-            }
-        }
-        if let Some(c) = self.sensor_calibration {
-            let span = c.channel.span();
-            let ok = (0.1..=10.0).contains(&c.gain_1)
-                && c.offset_si.abs() <= span
-                && c.quad_1.abs() <= 1.0;
-            if !ok {
-                return constraint(
-                    EffectKind::SensorCalibration,
-                    "channel must be 0 to 4, gain_1 in [0.1, 10], abs(offset_si) at most the \
-                     channel's span, abs(quad_1) at most 1",
-                );
-            }
-        }
-        if let Some(r) = self.parameters {
-            if r.to_array().iter().any(|x| *x <= 0.0) {
-                return constraint(EffectKind::Parameters, "every ratio must be > 0");
-            }
-        }
-        Ok(())
+        self.check_bounds()
     }
 }
 
@@ -779,6 +550,23 @@ pub enum EffectError {
         /// What must hold.
         requirement: &'static str,
     },
+}
+
+impl EffectError {
+    /// `Err` of a broken relation of effect `kind`.
+    fn constraint<T>(kind: EffectKind, requirement: &'static str) -> Result<T, Self> {
+        Err(Self::Constraint { kind, requirement })
+    }
+}
+
+impl Broken {
+    /// The error of effect `kind` whose parameters break this.
+    fn of(self, kind: EffectKind) -> EffectError {
+        match self {
+            Self::Requirement(requirement) => EffectError::Constraint { kind, requirement },
+            Self::Kappa(kappa) => EffectError::Kappa(kappa),
+        }
+    }
 }
 
 fn effect_names() -> String {

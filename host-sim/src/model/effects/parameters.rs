@@ -3,6 +3,8 @@
 use dca_core::params::PlantParams;
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, NamedEffect, ParamSpec};
+
 use super::common::one;
 
 /// The rig's nominal parameters off by ratios (1: nominal): the diagnosis's
@@ -97,5 +99,35 @@ impl ParameterRatios {
             }
         }
         out
+    }
+}
+
+/// Smallest and largest ratio of a re-estimated parameter.
+pub const RATIO_BOUNDS: (f64, f64) = (1.0 / 3.0, 3.0);
+
+impl NamedEffect for ParameterRatios {
+    const SUBSYSTEM: &'static str = "plant";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("m_kg_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("beta_e_pa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("hose_c_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("c_visc_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("tau_m_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("p_acc0_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+        p("aa_ratio", 1.0, RATIO_BOUNDS.0, RATIO_BOUNDS.1),
+    ];
+    const SEARCHED: bool = false;
+    fn values(&self) -> Vec<f64> {
+        self.to_array().to_vec()
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        let a: [f64; 7] = std::array::from_fn(at);
+        Self::from_array(a)
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        if self.to_array().iter().any(|x| *x <= 0.0) {
+            return Err(Broken::Requirement("every ratio must be > 0"));
+        }
+        Ok(())
     }
 }

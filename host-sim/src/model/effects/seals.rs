@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+
 use super::common::{interp, one};
 
 /// Internal leakage across the pistons.
@@ -142,4 +144,98 @@ pub fn friction_force_n(f: &Friction, v_mps: f64) -> f64 {
     let r = v_mps / f.stribeck_mps;
     let mag = f.coulomb_n + (f.static_n - f.coulomb_n) * libm::exp(-r * r);
     -mag * libm::tanh(v_mps / FRICTION_SMOOTH_MPS)
+}
+
+impl NamedEffect for Leakage {
+    const SUBSYSTEM: &'static str = "seals";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("g_m3pspa", 1e-13, 1e-16, 1e-11),
+        p("exponent", 1.0, 0.5, 1.0),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.g_m3pspa, self.exponent]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            g_m3pspa: at(0),
+            exponent: at(1),
+        }
+    }
+    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
+        Some(leak_flow_m3ps(self, p1_pa, p2_pa))
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        if !(self.exponent > 0.0 && self.exponent <= 2.0) {
+            return Err(Broken::Requirement("exponent must be in (0, 2]"));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for LeakageMap {
+    const FORM: &'static str =
+        "general: internal leakage of any shape over the pressure difference, plus a share growing with the pressure level";
+    const BOTH: &'static str = "the named form and the leakage map exclude each other";
+    const REQUIREMENT: &'static str = "leakage_map: q_m3ps and g_m3pspa must be finite and >= 0";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        let mut m = vec![("g_m3pspa".to_string(), self.g_m3pspa)];
+        for (dp, q) in LEAK_DP_PA[1..].iter().zip(self.q_m3ps) {
+            m.push((format!("q_m3ps_at_{:.2}_mpa", dp * 1e-6), q));
+        }
+        m
+    }
+    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
+        Some(self.flow(p1_pa, p2_pa))
+    }
+}
+
+impl NamedEffect for Friction {
+    const SUBSYSTEM: &'static str = "seals";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("coulomb_n", 30.0, 0.0, 500.0),
+        p("static_n", 45.0, 0.0, 800.0),
+        p("stribeck_mps", 2e-3, 1e-4, 5e-2),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.coulomb_n, self.static_n, self.stribeck_mps]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            coulomb_n: at(0),
+            static_n: at(1),
+            stribeck_mps: at(2),
+        }
+    }
+    fn piston_force_n(&self, vo_mps: f64, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
+        Some(friction_force_n(self, vo_mps))
+    }
+    fn check_bounds(&self) -> Result<(), Broken> {
+        if self.stribeck_mps <= 0.0 {
+            return Err(Broken::Requirement("stribeck_mps must be > 0"));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for FrictionMap {
+    const FORM: &'static str =
+        "general: seal friction of any shape over speed, plus a share growing with the line pressures";
+    const BOTH: &'static str = "the named form and the friction map exclude each other";
+    const REQUIREMENT: &'static str = "friction_map: force_n and n_per_mpa must be finite and >= 0";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        let mut m = vec![("n_per_mpa".to_string(), self.n_per_mpa)];
+        for (v, x) in FRICTION_SPEEDS_MPS.iter().zip(self.force_n) {
+            m.push((format!("force_n_at_{:.1}_mmps", v * 1e3), x));
+        }
+        m
+    }
+    fn piston_force_n(&self, vo_mps: f64, p1_pa: f64, p2_pa: f64) -> Option<f64> {
+        Some(self.force(vo_mps, p1_pa, p2_pa))
+    }
 }

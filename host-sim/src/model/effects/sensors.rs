@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+
 use super::common::{interp, one};
 
 /// Delay and lag of the measurements.
@@ -222,5 +224,127 @@ impl SensorMap {
                 .iter()
                 .zip(&self.readings_si)
                 .all(|(k, r)| (r - k).abs() <= span)
+    }
+}
+
+impl NamedEffect for SensorDelay {
+    const SUBSYSTEM: &'static str = "sensors";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("xo_delay_s", 3e-3, 0.0, 0.1),
+        p("xo_tau_s", 2e-3, 0.0, 0.1),
+        p("p_tau_s", 1e-3, 0.0, 0.1),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.xo_delay_s, self.xo_tau_s, self.p_tau_s]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            xo_delay_s: at(0),
+            xo_tau_s: at(1),
+            p_tau_s: at(2),
+        }
+    }
+}
+
+impl GeneralFamily for SensorFilter {
+    const FORM: &'static str =
+        "general: a sensor's lag of any shape (a non-negative impulse response over 0 to 32 ms)";
+    const BOTH: &'static str = "the named form and the sensor filter exclude each other";
+    const REQUIREMENT: &'static str =
+        "sensor_filter: channel xo_m, xi_m, p1_pa or p2_pa, weights non-negative \
+         and not all zero";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        let mut m = vec![
+            ("channel".to_string(), self.channel.index() as f64),
+            ("mean_delay_s".to_string(), self.mean_delay_s()),
+        ];
+        for (d, w) in FILTER_DELAYS_S.iter().zip(self.normalised()) {
+            m.push((format!("weight_at_{:.0}_ms", d * 1e3), w));
+        }
+        m
+    }
+}
+
+/// The offset and the nonlinearity are signed: [`NamedEffect::check_relations`]
+/// checks them against the channel's span, not these bounds.
+impl NamedEffect for SensorCalibration {
+    const SUBSYSTEM: &'static str = "sensors";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("channel", 0.0, 0.0, 4.0),
+        p("gain_1", 1.0, 0.5, 2.0),
+        p("offset_si", 0.0, 0.0, 0.0),
+        p("quad_1", 0.0, 0.0, 0.0),
+    ];
+    const SEARCHED: bool = false;
+    const RANGE_CHECKED: bool = false;
+    fn values(&self) -> Vec<f64> {
+        vec![
+            self.channel.index() as f64,
+            self.gain_1,
+            self.offset_si,
+            self.quad_1,
+        ]
+    }
+    /// A channel index off the list is kept out of range as a NaN gain,
+    /// which the checks refuse.
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        let ch = at(0);
+        let channel = CalChannel::from_index(ch.round().max(0.0) as usize);
+        Self {
+            channel: channel.unwrap_or(CalChannel::Xo),
+            gain_1: if channel.is_some() && ch.fract() == 0.0 {
+                at(1)
+            } else {
+                f64::NAN
+            },
+            offset_si: at(2),
+            quad_1: at(3),
+        }
+    }
+    fn check_relations(&self) -> Result<(), Broken> {
+        let span = self.channel.span();
+        let ok = (0.1..=10.0).contains(&self.gain_1)
+            && self.offset_si.abs() <= span
+            && self.quad_1.abs() <= 1.0;
+        if !ok {
+            return Err(Broken::Requirement(
+                "channel must be 0 to 4, gain_1 in [0.1, 10], abs(offset_si) at most the \
+                 channel's span, abs(quad_1) at most 1",
+            ));
+        }
+        Ok(())
+    }
+    /// The offset carries its channel's unit: `offset_m`, `offset_pa`,
+    /// `offset_n`.
+    fn param_map(&self) -> Option<Vec<(String, f64)>> {
+        Some(vec![
+            ("channel".to_string(), self.channel.index() as f64),
+            ("gain_1".to_string(), self.gain_1),
+            (format!("offset_{}", self.channel.unit()), self.offset_si),
+            ("quad_1".to_string(), self.quad_1),
+        ])
+    }
+}
+
+impl GeneralFamily for SensorMap {
+    const FORM: &'static str =
+        "general: a sensor's monotone static map of any shape (piecewise linear, six knots)";
+    const BOTH: &'static str = "the named form and the sensor map exclude each other";
+    const REQUIREMENT: &'static str = "sensor_map: knots_si and readings_si \
+                 strictly increasing, each reading within the channel's span of its knot";
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        let mut m = vec![("channel".to_string(), self.channel.index() as f64)];
+        let unit = self.channel.unit();
+        for (i, (k, r)) in self.knots_si.iter().zip(self.readings_si).enumerate() {
+            m.push((format!("knot{i}_{unit}"), *k));
+            m.push((format!("reading{i}_{unit}"), r));
+        }
+        m
     }
 }

@@ -3,6 +3,8 @@
 
 use serde::Deserialize;
 
+use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
+
 /// Servo torque and acceleration limits.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -114,5 +116,55 @@ pub fn servo_accel(servo: Servo<'_>, vc_mps: f64, v_mps: f64, tau_s: f64, f_load
         }
         Servo::Envelope(s) => s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n),
         Servo::Nominal => (vc_mps - v_mps) / tau_s,
+    }
+}
+
+impl NamedEffect for MotorLimit {
+    const SUBSYSTEM: &'static str = "servo";
+    const PARAMS: &'static [ParamSpec] = &[
+        p("force_max_n", 2000.0, 50.0, 1e5),
+        p("mass_eq_kg", 200.0, 5.0, 1e5),
+        p("speed_max_mps", 0.1, 0.005, 0.1),
+    ];
+    fn values(&self) -> Vec<f64> {
+        vec![self.force_max_n, self.mass_eq_kg, self.speed_max_mps]
+    }
+    fn from_values(at: &dyn Fn(usize) -> f64) -> Self {
+        Self {
+            force_max_n: at(0),
+            mass_eq_kg: at(1),
+            speed_max_mps: at(2),
+        }
+    }
+    fn check_bounds(&self) -> Result<(), Broken> {
+        if self.force_max_n <= 0.0 || self.mass_eq_kg <= 0.0 || self.speed_max_mps <= 0.0 {
+            return Err(Broken::Requirement(
+                "force_max_n, mass_eq_kg and speed_max_mps must be > 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl GeneralFamily for ServoEnvelope {
+    const FORM: &'static str =
+        "general: the servo's force envelope over speed, learned from the encoder";
+    const BOTH: &'static str = "the named form and the servo envelope exclude each other";
+    const REQUIREMENT: &'static str =
+        "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
+         and non-increasing with speed";
+    /// Valid, and its force at rest and mass within VALID_SPAN times the
+    /// named form's largest.
+    fn family_valid(&self) -> bool {
+        self.is_valid()
+            && self.force_n[0] <= VALID_SPAN * MotorLimit::PARAMS[0].max
+            && self.mass_eq_kg <= VALID_SPAN * MotorLimit::PARAMS[1].max
+    }
+    fn param_map(&self) -> Vec<(String, f64)> {
+        let mut m = vec![("mass_eq_kg".to_string(), self.mass_eq_kg)];
+        for (v, f) in ENVELOPE_SPEEDS_MPS.iter().zip(self.force_n) {
+            m.push((format!("force_n_at_{v:.2}_mps"), f));
+        }
+        m
     }
 }
