@@ -15,7 +15,8 @@
 //! The GRNN hose variants ([`HoseModel::Grnn`], [`HoseModel::GrnnMemory`]) make the
 //! pressure equation implicit in dP/dt; it is solved per line and per RK stage by
 //! safeguarded Newton ([`crate::model::hose::grnn::GrnnHose::solve_dp_paps`]), warm-started
-//! at the line's previous solution. That solver state lives in the plant behind
+//! at the line's previous solution (the memory hose: moved by a predicted step for the
+//! change of the line's flow and volume). That solver state lives in the plant behind
 //! relaxed atomics, so `derivative` and `step` keep `&self` and `Plant` stays
 //! `Send + Sync`; [`Plant::initial_state`] resets it, which keeps runs reproducible.
 //! The memory variant's filter states are ordinary plant states (the hose-volume
@@ -213,8 +214,8 @@ impl HoseModel {
 /// [`Plant::step`] keep `&self` for every hose model. It is held in relaxed
 /// atomics (not a `Cell`), so a `Plant` stays `Sync` and can be shared by
 /// threads; each clone has its own copy. It only chooses where Newton starts:
-/// results differ by less than the Newton tolerance (1e-3 Pa/s in dP/dt) with
-/// another start. Runs are bit-reproducible because [`Plant::initial_state`]
+/// results differ by about the hose's Newton tolerance
+/// ([`GrnnHose::newton_tol_paps`]) with another start. Runs are bit-reproducible because [`Plant::initial_state`]
 /// resets it (as every run starts there), provided one plant instance is not
 /// stepped by two threads at once (give each thread its own clone).
 ///
@@ -225,6 +226,12 @@ struct GrnnLines {
     hose: Arc<GrnnHose>,
     /// Last solution per line, f64 bits.
     warm: [AtomicU64; 2],
+    /// Per line, f64 bits: the last solve's inflow Q (m^3/s), coefficient a
+    /// (m^3/Pa) and residual slope (m^3/Pa; NaN before the first solve), for
+    /// the warm-start predictor ([`GrnnHose::predicts_warm_start`]).
+    last_q: [AtomicU64; 2],
+    last_a: [AtomicU64; 2],
+    last_fp: [AtomicU64; 2],
     /// Evaluation cache per line.
     cache: [Mutex<LocalCache>; 2],
     /// Solves and iterations since the last reset.
@@ -237,6 +244,12 @@ impl GrnnLines {
         Self {
             hose,
             warm: [AtomicU64::new(0), AtomicU64::new(0)],
+            last_q: [AtomicU64::new(0), AtomicU64::new(0)],
+            last_a: [AtomicU64::new(0), AtomicU64::new(0)],
+            last_fp: [
+                AtomicU64::new(f64::NAN.to_bits()),
+                AtomicU64::new(f64::NAN.to_bits()),
+            ],
             cache: Default::default(),
             solves: AtomicU64::new(0),
             iterations: AtomicU64::new(0),
@@ -247,6 +260,9 @@ impl GrnnLines {
         for w in &self.warm {
             w.store(0f64.to_bits(), Ordering::Relaxed);
         }
+        for f in &self.last_fp {
+            f.store(f64::NAN.to_bits(), Ordering::Relaxed);
+        }
         self.solves.store(0, Ordering::Relaxed);
         self.iterations.store(0, Ordering::Relaxed);
         for c in &self.cache {
@@ -255,11 +271,46 @@ impl GrnnLines {
     }
 }
 
+impl GrnnLines {
+    /// Where the next solve of `line` starts: its last solution, or (hose with
+    /// [`GrnnHose::predicts_warm_start`]) that solution moved by one Newton step
+    /// for the change of the inflow Q and of the coefficient a since the last
+    /// solve, the wall rate's change with P and the filters neglected:
+    ///
+    /// dP_0 = dP_last + ((Q - Q_last) - (a - a_last) dP_last) / (a + f'_last - a_last),
+    ///
+    /// f'_last the last residual slope. It only chooses where Newton starts.
+    #[inline]
+    fn warm_start_paps(&self, line: usize, q_m3ps: f64, a_m3ppa: f64) -> f64 {
+        let warm = f64::from_bits(self.warm[line].load(Ordering::Relaxed));
+        if !self.hose.predicts_warm_start() {
+            return warm;
+        }
+        let fp = f64::from_bits(self.last_fp[line].load(Ordering::Relaxed));
+        let q0 = f64::from_bits(self.last_q[line].load(Ordering::Relaxed));
+        let a0 = f64::from_bits(self.last_a[line].load(Ordering::Relaxed));
+        let den = a_m3ppa + fp - a0;
+        let next = warm + ((q_m3ps - q0) - (a_m3ppa - a0) * warm) / den;
+        if fp.is_finite() && den > 0.0 && next.is_finite() {
+            next
+        } else {
+            warm
+        }
+    }
+}
+
 impl Clone for GrnnLines {
     fn clone(&self) -> Self {
         let c = Self::new(self.hose.clone());
-        for (d, s) in c.warm.iter().zip(&self.warm) {
-            d.store(s.load(Ordering::Relaxed), Ordering::Relaxed);
+        for (d, s) in [
+            (&c.warm, &self.warm),
+            (&c.last_q, &self.last_q),
+            (&c.last_a, &self.last_a),
+            (&c.last_fp, &self.last_fp),
+        ] {
+            for (d, s) in d.iter().zip(s) {
+                d.store(s.load(Ordering::Relaxed), Ordering::Relaxed);
+            }
         }
         c
     }
@@ -651,16 +702,22 @@ impl Plant {
         } else {
             [0.0; 2]
         };
-        let warm = f64::from_bits(g.warm[line].load(Ordering::Relaxed));
+        let a_m3ppa = v_m3 * self.inv_beta_e_ppa;
+        let warm = g.warm_start_paps(line, q_m3ps, a_m3ppa);
         let s = g.hose.solve_dp_paps_cached(
             p_pa,
             mem_mpa,
             q_m3ps,
-            v_m3 * self.inv_beta_e_ppa,
+            a_m3ppa,
             warm,
             &mut g.cache[line].lock().unwrap_or_else(|e| e.into_inner()),
         );
         g.warm[line].store(s.dp_paps.to_bits(), Ordering::Relaxed);
+        if g.hose.predicts_warm_start() {
+            g.last_q[line].store(q_m3ps.to_bits(), Ordering::Relaxed);
+            g.last_a[line].store(a_m3ppa.to_bits(), Ordering::Relaxed);
+            g.last_fp[line].store(s.df_ddp_m3ppa.to_bits(), Ordering::Relaxed);
+        }
         g.solves.fetch_add(1, Ordering::Relaxed);
         g.iterations
             .fetch_add(u64::from(s.iterations), Ordering::Relaxed);

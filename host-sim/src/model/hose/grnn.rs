@@ -14,7 +14,8 @@
 //! GRNN output); a Newton step that leaves the current bracket, or a
 //! non-positive slope, is replaced by bisection; the iteration starts at the
 //! warm start (clamped into the bracket) and stops when the step is below
-//! 1e-3 Pa/s, after at most 30 iterations.
+//! the hose's tolerance ([`NEWTON_STEP_TOL_PAPS`] = 1e-3 Pa/s static,
+//! [`MEMORY_NEWTON_TOL_PAPS`] memory), after at most 30 iterations.
 //!
 //! Evaluation: the static map uses [`FastGrnn`] (table + truncated sum), the
 //! memory map [`LocalGrnn`] (a cached local list of samples, one
@@ -34,8 +35,14 @@ use super::net::{FitError, Grnn};
 /// section 9).
 pub const PAPER_SIGMA: f64 = 0.1;
 
-/// Newton stops when the step is below this, Pa/s.
+/// Newton stops when the step is below this, Pa/s (the static hose's
+/// tolerance; see [`GrnnHose::newton_tol_paps`]).
 pub const NEWTON_STEP_TOL_PAPS: f64 = 1e-3;
+/// The memory hose's Newton tolerance, Pa/s: the returned Newton update is then
+/// within about C step^2 of the root, far below what the evaluator's own bound
+/// ([`MEMORY_TRUNC_EPS`]) already moves dP/dt (measured on the plant's
+/// trajectories: docs/model.md section 4, test `grnn_plant.rs`).
+pub const MEMORY_NEWTON_TOL_PAPS: f64 = 100.0;
 /// Newton iteration limit.
 pub const NEWTON_MAX_ITER: u32 = 30;
 
@@ -106,6 +113,8 @@ pub struct GrnnHose {
     g_min: f64,
     g_max: f64,
     bound: f64,
+    newton_tol_paps: f64,
+    predict_warm: bool,
     description: String,
 }
 
@@ -116,6 +125,9 @@ pub struct Solve {
     pub dp_paps: f64,
     /// Newton/bisection iterations used (each one GRNN evaluation).
     pub iterations: u32,
+    /// Slope of the residual at the last evaluation, a + 1e-15 dg/d(dP/dt),
+    /// m^3/Pa (the plant's warm-start predictor uses it).
+    pub df_ddp_m3ppa: f64,
 }
 
 impl GrnnHose {
@@ -137,6 +149,8 @@ impl GrnnHose {
             n_samples: net.len(),
             g_min,
             g_max,
+            newton_tol_paps: NEWTON_STEP_TOL_PAPS,
+            predict_warm: false,
             description: description.into(),
         })
     }
@@ -166,8 +180,8 @@ impl GrnnHose {
 
     /// A memory hose with the former evaluator, [`Truncated`] (grid-binned, bound
     /// [`MEMORY_TRUNC_EPS`] of the range): the same model, about 7 times slower
-    /// in the closed-loop plant (`host-sim bench`); kept for side-by-side
-    /// comparisons (the bench, tests).
+    /// in the closed-loop plant with the same solve (`host-sim bench`); kept for
+    /// side-by-side comparisons (the bench, tests).
     pub fn from_memory_truncated(
         m: &MemoryGrnn,
         description: impl Into<String>,
@@ -196,6 +210,8 @@ impl GrnnHose {
             n_samples: m.net.len(),
             g_min,
             g_max,
+            newton_tol_paps: MEMORY_NEWTON_TOL_PAPS,
+            predict_warm: true,
             description: description.into(),
         })
     }
@@ -280,6 +296,29 @@ impl GrnnHose {
         self.bound
     }
 
+    /// Newton's step tolerance of [`GrnnHose::solve_dp_paps`], Pa/s
+    /// ([`NEWTON_STEP_TOL_PAPS`] for a static hose, [`MEMORY_NEWTON_TOL_PAPS`]
+    /// for a memory hose).
+    pub fn newton_tol_paps(&self) -> f64 {
+        self.newton_tol_paps
+    }
+
+    /// Whether the plant predicts each solve's warm start from the line's
+    /// previous solve (true for a memory hose; see
+    /// [`crate::model::plant::Plant`]'s GRNN lines).
+    pub fn predicts_warm_start(&self) -> bool {
+        self.predict_warm
+    }
+
+    /// This hose with another Newton tolerance (Pa/s, > 0) and warm-start
+    /// predictor setting (for comparisons of the solver against a tighter one).
+    pub fn with_newton(mut self, tol_paps: f64, predict_warm: bool) -> Self {
+        assert!(tol_paps > 0.0, "the Newton tolerance must be positive");
+        self.newton_tol_paps = tol_paps;
+        self.predict_warm = predict_warm;
+        self
+    }
+
     /// What the hose was fitted on.
     pub fn description(&self) -> &str {
         &self.description
@@ -354,13 +393,16 @@ impl GrnnHose {
         } else {
             0.5 * (lo + hi)
         };
+        let mut last_fp = a_m3ppa;
         for it in 1..=NEWTON_MAX_ITER {
             let (g, slope) = self.wall_rate_cached(p_mpa, x * 1e-6, mem_mpa, cache);
             let f = a_m3ppa * x + 1e-9 * g - q_m3ps;
+            let fp = a_m3ppa + 1e-15 * slope;
             if f == 0.0 {
                 return Solve {
                     dp_paps: x,
                     iterations: it,
+                    df_ddp_m3ppa: fp,
                 };
             }
             if f > 0.0 {
@@ -368,7 +410,6 @@ impl GrnnHose {
             } else {
                 lo = x;
             }
-            let fp = a_m3ppa + 1e-15 * slope;
             let newton = x - f / fp;
             let next = if fp > 0.0 && newton > lo && newton < hi {
                 newton
@@ -377,16 +418,19 @@ impl GrnnHose {
             };
             let step = (next - x).abs();
             x = next;
-            if step < NEWTON_STEP_TOL_PAPS {
+            if step < self.newton_tol_paps {
                 return Solve {
                     dp_paps: x,
                     iterations: it,
+                    df_ddp_m3ppa: fp,
                 };
             }
+            last_fp = fp;
         }
         Solve {
             dp_paps: x,
             iterations: NEWTON_MAX_ITER,
+            df_ddp_m3ppa: last_fp,
         }
     }
 }
