@@ -20,7 +20,7 @@ use crate::gap::stats::median;
 use crate::gap::validation::{cases, check_scenario, fit_scenario, rig_log, suite_logs};
 use crate::gap::{calibrate, grey_box};
 use crate::model::effects::{EffectKind, Effects};
-use crate::model::hose::grnn::GrnnHose;
+use crate::model::hose::grnn::{GrnnHose, NEWTON_STEP_TOL_PAPS};
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::model::scenario::Scenario;
 use crate::model::sensors::SensorMode;
@@ -172,8 +172,12 @@ fn run_rows(reps: usize, floor: f64) -> Vec<BenchRow> {
 }
 
 /// The grnn-memory plant with MPC-ESO on stepload, its evaluator ([`crate::model::hose::local`])
-/// against the former one (grid-binned `Truncated`, the same bound), run after
-/// run in one process: real-time factors, their ratio and the work per plant step.
+/// and solve (Newton to
+/// [`MEMORY_NEWTON_TOL_PAPS`](crate::model::hose::grnn::MEMORY_NEWTON_TOL_PAPS) from a predicted start)
+/// against the former solve (to [`NEWTON_STEP_TOL_PAPS`] from the last
+/// solution) and against the former evaluator (grid-binned `Truncated`, the
+/// same bound) with the former solve, run after run in one process: real-time
+/// factors, the speed-up and the work per plant step.
 fn memory_rows(reps: usize) -> Vec<BenchRow> {
     let new = spec(
         "stepload",
@@ -181,18 +185,22 @@ fn memory_rows(reps: usize) -> Vec<BenchRow> {
         HoseModel::GrnnMemory,
         2e-4,
     );
-    let mut old = new.clone();
-    old.plant = Plant::with_grnn_hose(
-        dca_core::params::PlantParams::NOMINAL,
-        std::sync::Arc::new(
-            GrnnHose::from_memory_truncated(&GrnnHose::shipped_memory_grnn(), "former")
-                .expect("memory inputs"),
-        ),
-    );
+    let net = GrnnHose::shipped_memory_grnn();
+    let with_hose = |h: GrnnHose| {
+        let mut s = new.clone();
+        s.plant = Plant::with_grnn_hose(
+            dca_core::params::PlantParams::NOMINAL,
+            std::sync::Arc::new(h.with_newton(NEWTON_STEP_TOL_PAPS, false)),
+        );
+        s
+    };
+    let solve = with_hose(GrnnHose::from_memory(&net, "former solve").expect("memory inputs"));
+    let old = with_hose(GrnnHose::from_memory_truncated(&net, "former").expect("memory inputs"));
     let d = new.scenario.duration_s();
-    let (mut t_new, mut t_old) = (f64::INFINITY, f64::INFINITY);
+    let (mut t_new, mut t_solve, mut t_old) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     for _ in 0..reps.min(3) {
         t_old = t_old.min(time_run(&old));
+        t_solve = t_solve.min(time_run(&solve));
         t_new = t_new.min(time_run(&new));
     }
     // The work per step, counted on the plant stepped open loop (`openloop`;
@@ -221,11 +229,20 @@ fn memory_rows(reps: usize) -> Vec<BenchRow> {
             "x real time",
         ),
         row(
-            "  the same with the former evaluator (grid-binned Truncated)",
+            "  the same with the former solve (Newton to 1e-3 Pa/s from the last solution)",
+            d / t_solve,
+            "x real time",
+        ),
+        row(
+            "  the same with the former evaluator (grid-binned Truncated) and solve",
             d / t_old,
             "x real time",
         ),
-        row("  speed-up, same run", t_old / t_new, "x"),
+        row(
+            "  speed-up over the former evaluator and solve, same run",
+            t_old / t_new,
+            "x",
+        ),
         row(
             "  GRNN evaluations per plant step (openloop, 8 Newton solves a step)",
             iterations as f64 / steps,
