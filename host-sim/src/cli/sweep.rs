@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, SweepParam};
+use host_sim::sim::tolerance::read_spec;
 use host_sim::studies::montecarlo::{outcome, write_report};
 
 use super::args::{RunOpts, CONTROL_TICK_HELP};
@@ -24,8 +25,20 @@ pub struct Args {
     perturb: Option<f64>,
     /// The plant parameters drawn by --perturb, `k1,k2,...` (`hose.<key>` for
     /// the hose wall; default: every physical one).
-    #[arg(long, value_name = "KEYS", requires = "perturb")]
+    // Clap counts a requirement met when a given option conflicts with it:
+    // the conflict with --perturb-spec is said explicitly.
+    #[arg(
+        long,
+        value_name = "KEYS",
+        requires = "perturb",
+        conflicts_with = "perturb_spec"
+    )]
     perturb_keys: Option<String>,
+    /// Monte Carlo over the rig from a tolerance spec (TOML: per plant parameter
+    /// a distribution, uniform, normal or lognormal, and its reason), e.g.
+    /// host-sim/data/tolerances/dca-rig.toml; keys not listed are not drawn.
+    #[arg(long, value_name = "FILE", conflicts_with = "perturb")]
+    perturb_spec: Option<PathBuf>,
     /// Also write each run's log as DIR/run-<index>.csv.
     #[arg(long, value_name = "DIR")]
     logs: Option<PathBuf>,
@@ -74,10 +87,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|p| SweepParam::parse(p))
         .collect::<Result<Vec<_>, _>>()?;
     let seeds = parse_seeds(&a.seeds)?;
-    let perturb = a
-        .perturb
-        .map(|f| Perturb::new(f, a.perturb_keys.as_deref()))
-        .transpose()?;
+    let perturb = match (&a.perturb_spec, a.perturb) {
+        (Some(file), _) => Some(Perturb::from_spec(&read_spec(file)?)),
+        (None, f) => f
+            .map(|f| Perturb::new(f, a.perturb_keys.as_deref()))
+            .transpose()?,
+    };
     let setup = setup_text(&a, perturb.as_ref(), seeds.len());
     let base = a.what.request(None, None, a.control_tick);
     let t0 = std::time::Instant::now();
@@ -119,13 +134,7 @@ fn setup_text(a: &Args, perturb: Option<&Perturb>, seeds: usize) -> String {
         s += &format!(", parameters `{}`", a.params.join("`, `"));
     }
     if let Some(p) = perturb {
-        let keys: Vec<&str> = p.keys.iter().map(|k| k.name).collect();
-        s += &format!(
-            ". Rig drawn per seed uniformly within +-{} of its value: {} (the controller keeps its \
-             design model)",
-            p.fraction,
-            keys.join(", ")
-        );
+        s += &format!(". {} (the controller keeps its design model)", p.describe());
     }
     s + ". Options: `" + &a.what.describe() + "`."
 }
@@ -148,5 +157,41 @@ mod tests {
             let e = parse_seeds(s).unwrap_err().to_string();
             assert!(e.contains(want), "{s}: {e}");
         }
+    }
+
+    /// `--perturb` and `--perturb-spec` exclude each other; `--perturb-keys`
+    /// goes with `--perturb` only; the report says which spec drew the rigs.
+    #[test]
+    fn perturb_options_exclude_each_other() {
+        use clap::Parser as _;
+        let parse = |extra: &[&str]| {
+            let argv = ["host-sim", "sweep", "--scenario", "step", "--out", "x.csv"];
+            super::super::Cli::try_parse_from(argv.iter().chain(extra))
+        };
+        assert!(parse(&["--perturb", "0.3"]).is_ok());
+        assert!(parse(&["--perturb-spec", "t.toml"]).is_ok());
+        let e = parse(&["--perturb", "0.3", "--perturb-spec", "t.toml"]).unwrap_err();
+        assert_eq!(e.kind(), clap::error::ErrorKind::ArgumentConflict, "{e}");
+        assert!(parse(&["--perturb-spec", "t.toml", "--perturb-keys", "m_kg"]).is_err());
+        assert!(parse(&["--perturb-keys", "m_kg"]).is_err());
+        let spec = host_sim::sim::tolerance::spec_str(
+            "[m_kg]\ndist = \"normal\"\nsigma = 0.05\nreason = \"weighed\"\n",
+            "my-rig.toml",
+        )
+        .unwrap();
+        let super::super::Command::Sweep(a) = parse(&[]).unwrap().command else {
+            panic!("not sweep");
+        };
+        let text = setup_text(&a, Some(&Perturb::from_spec(&spec)), 2);
+        assert!(
+            text.contains("from the tolerance spec `my-rig.toml`")
+                && text.contains("`m_kg` normal sigma 0.05"),
+            "{text}"
+        );
+        let text = setup_text(&a, Some(&Perturb::new(0.3, Some("m_kg")).unwrap()), 2);
+        assert!(
+            text.contains("uniformly within +-0.3 of its value: m_kg"),
+            "{text}"
+        );
     }
 }

@@ -25,6 +25,7 @@ use std::ops::Range;
 use dca_core::params::PlantParams;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use serde::de::{DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
@@ -409,13 +410,13 @@ impl ParamsToml {
 }
 
 /// A key of the top-level table or of `[hose]`.
-enum Key {
+pub(crate) enum Key {
     Param(&'static ParamKey),
     Hose,
 }
 
 /// The key `v` of the top-level table (`hose: false`) or of `[hose]`.
-fn lookup_key(v: &str, hose: bool) -> Result<Key, String> {
+pub(crate) fn lookup_key(v: &str, hose: bool) -> Result<Key, String> {
     if v == "hose" && !hose {
         return Ok(Key::Hose);
     }
@@ -488,31 +489,112 @@ impl<'de> Deserialize<'de> for ParamsToml {
 }
 
 /// The ChaCha stream of the parameter draws (the sensor noise of the same
-/// seed uses stream 0, so the two never share numbers).
+/// seed uses stream 0, so the two never share numbers). A `normal` or
+/// `lognormal` key draws from stream `DRAW_STREAM + 1 + i`, `i` its index in
+/// [`KEYS`].
 const DRAW_STREAM: u64 = 0x6463_615f_6d63; // "dca_mc"
 
-/// Draw a rig for Monte Carlo seed `seed`: each parameter of `keys`
-/// uniformly within `base * (1 +- fraction)`. One number is drawn for every
-/// key of [`KEYS`] in order, used or not, so a key's value depends only on
-/// the seed, the fraction and its base value, not on which other keys are
-/// drawn. Returns the rig and the drawn values in [`KEYS`] order.
+/// Where the `normal` and `lognormal` draws are cut, in standard deviations
+/// (a draw beyond is drawn again): within it lie 99.73 % of the untruncated
+/// distribution, and a `normal` spread with sigma below 1 / 3 keeps the
+/// value's sign.
+pub const TRUNCATE_SIGMAS: f64 = 3.0;
+
+/// How one parameter is drawn around its base value `v0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Spread {
+    /// `v0 (1 + w (2u - 1))`, u uniform in [0, 1): within +-`half_width` (`w`,
+    /// a fraction) of `v0`. `sweep --perturb F` draws every key so.
+    Uniform {
+        /// The half-width as a fraction of the value.
+        half_width: f64,
+    },
+    /// `v0 (1 + sigma z)`, z standard normal truncated at +-[`TRUNCATE_SIGMAS`].
+    Normal {
+        /// The standard deviation (before truncation) as a fraction of the value.
+        sigma: f64,
+    },
+    /// `v0 exp(sigma z)`, z as for [`Spread::Normal`]: the median is `v0`, the
+    /// value keeps its sign, the spread is a factor rather than a difference.
+    LogNormal {
+        /// The standard deviation (before truncation) of the natural logarithm.
+        sigma: f64,
+    },
+}
+
+impl Spread {
+    /// Its fraction: the half-width or sigma.
+    pub fn fraction(self) -> f64 {
+        match self {
+            Self::Uniform { half_width } => half_width,
+            Self::Normal { sigma } | Self::LogNormal { sigma } => sigma,
+        }
+    }
+
+    /// The interval every draw around `v0` lies in (ends included; for a
+    /// negative `v0` the ends swap).
+    pub fn bounds(self, v0: f64) -> (f64, f64) {
+        let k = TRUNCATE_SIGMAS;
+        let (lo, hi) = match self {
+            Self::Uniform { half_width: w } => (v0 * (1.0 - w), v0 * (1.0 + w)),
+            Self::Normal { sigma } => (v0 * (1.0 - k * sigma), v0 * (1.0 + k * sigma)),
+            Self::LogNormal { sigma } => (v0 * libm::exp(-k * sigma), v0 * libm::exp(k * sigma)),
+        };
+        (lo.min(hi), lo.max(hi))
+    }
+}
+
+impl std::fmt::Display for Spread {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Uniform { half_width } => write!(f, "uniform +-{}", Num(*half_width)),
+            Self::Normal { sigma } => write!(f, "normal sigma {}", Num(*sigma)),
+            Self::LogNormal { sigma } => write!(f, "lognormal sigma {}", Num(*sigma)),
+        }
+    }
+}
+
+/// A standard normal number truncated at +-[`TRUNCATE_SIGMAS`], the first
+/// one within of key `index`'s own stream for `seed`.
+fn truncated_normal(seed: u64, index: usize) -> f64 {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(DRAW_STREAM + 1 + index as u64);
+    loop {
+        let z: f64 = rng.sample(StandardNormal);
+        if z.abs() <= TRUNCATE_SIGMAS {
+            return z;
+        }
+    }
+}
+
+/// Draw a rig for Monte Carlo seed `seed`: each parameter of `spreads` by
+/// its [`Spread`] around its value in `base`. One uniform number is drawn for
+/// every key of [`KEYS`] in order, used or not, and a normal one from the
+/// key's own stream, so a key's value depends only on the seed, its spread
+/// and its base value, not on which other keys are drawn or how. Returns the
+/// rig and the drawn values in [`KEYS`] order.
 pub fn draw(
     base: &PlantParams,
-    keys: &[&'static ParamKey],
-    fraction: f64,
+    spreads: &[(&'static ParamKey, Spread)],
     seed: u64,
 ) -> (PlantParams, Vec<(&'static ParamKey, f64)>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(DRAW_STREAM);
     let mut p = *base;
     let mut drawn = Vec::new();
-    for k in &KEYS {
+    for (i, k) in KEYS.iter().enumerate() {
         let u: f64 = rng.random();
-        if keys.contains(&k) {
-            let v = k.get(base) * (1.0 + fraction * (2.0 * u - 1.0));
-            k.set(&mut p, v);
-            drawn.push((k, v));
-        }
+        let Some(&(_, spread)) = spreads.iter().find(|(q, _)| *q == k) else {
+            continue;
+        };
+        let v0 = k.get(base);
+        let v = match spread {
+            Spread::Uniform { half_width } => v0 * (1.0 + half_width * (2.0 * u - 1.0)),
+            Spread::Normal { sigma } => v0 * (1.0 + sigma * truncated_normal(seed, i)),
+            Spread::LogNormal { sigma } => v0 * libm::exp(sigma * truncated_normal(seed, i)),
+        };
+        k.set(&mut p, v);
+        drawn.push((k, v));
     }
     (p, drawn)
 }
@@ -568,6 +650,11 @@ pub fn columns(
 mod tests {
     use super::*;
     use dca_core::params::HoseParams;
+
+    fn uniform(keys: &[&'static ParamKey], w: f64) -> Vec<(&'static ParamKey, Spread)> {
+        let s = Spread::Uniform { half_width: w };
+        keys.iter().map(|k| (*k, s)).collect()
+    }
 
     fn read(text: &str) -> Result<PlantParams, String> {
         let t: ParamsToml = toml::from_str(text).map_err(|e| e.to_string())?;
@@ -703,14 +790,14 @@ mod tests {
 
     #[test]
     fn draws_are_within_bounds_deterministic_and_per_seed() {
-        let keys = physical_keys();
+        let keys = uniform(&physical_keys(), 0.2);
         assert!(!keys
             .iter()
-            .any(|k| k.name == "p_atm_pa" || k.name == "x_min_m"));
+            .any(|(k, _)| k.name == "p_atm_pa" || k.name == "x_min_m"));
         let base = PlantParams::NOMINAL;
-        let (a, da) = draw(&base, &keys, 0.2, 7);
-        let (b, _) = draw(&base, &keys, 0.2, 7);
-        let (c, _) = draw(&base, &keys, 0.2, 8);
+        let (a, da) = draw(&base, &keys, 7);
+        let (b, _) = draw(&base, &keys, 7);
+        let (c, _) = draw(&base, &keys, 8);
         assert_eq!(a, b);
         assert_eq!(da.len(), keys.len());
         for (k, v) in &da {
@@ -731,11 +818,108 @@ mod tests {
         check(&a).unwrap();
         // Unlisted keys stay nominal; a key's draw does not depend on the others.
         let m = find("m_kg").unwrap();
-        let (only_m, d) = draw(&base, &[m], 0.2, 7);
+        let (only_m, d) = draw(&base, &uniform(&[m], 0.2), 7);
         assert_eq!(d.len(), 1);
         assert_eq!(only_m.m_kg, a.m_kg);
         assert_eq!(only_m.beta_e_pa, base.beta_e_pa);
         assert_eq!(parse_keys("m_kg, hose.ps_pa,m_kg").unwrap().len(), 2);
         assert!(parse_keys("mass").unwrap_err().to_string().contains("m_kg"));
+    }
+
+    /// `sweep --perturb F` draws what it drew before the spreads were
+    /// generalised: values printed by the former `draw(base, keys, F, seed)`
+    /// for F = 0.3 and every physical key, bit for bit.
+    #[test]
+    fn uniform_draws_are_those_of_the_former_code() {
+        let keys = uniform(&physical_keys(), 0.3);
+        for (seed, name, bits) in [
+            (0, "m_kg", 0x4049_fc1e_6f70_170a_u64),
+            (0, "beta_e_pa", 0x41cf_5b55_a024_6d6a),
+            (0, "tau_m_s", 0x3f80_dbe0_00c3_b8a5),
+            (0, "hose.ps_pa", 0x4128_5098_5912_21de),
+            (1, "m_kg", 0x404b_b574_e133_1fc4),
+            (1, "beta_e_pa", 0x41d3_afb4_4dad_ec4b),
+            (1, "tau_m_s", 0x3f82_d7fa_941d_fed8),
+            (1, "hose.ps_pa", 0x4131_e29e_f27b_44a6),
+        ] {
+            let k = find(name).unwrap();
+            let (p, _) = draw(&PlantParams::NOMINAL, &keys, seed);
+            assert_eq!(
+                k.get(&p).to_bits(),
+                bits,
+                "seed {seed}, {name}: {:e}",
+                k.get(&p)
+            );
+            // The same value when drawn alone, and when the others are not uniform.
+            let (q, _) = draw(&PlantParams::NOMINAL, &uniform(&[k], 0.3), seed);
+            assert_eq!(k.get(&q).to_bits(), bits);
+            let mixed: Vec<_> = keys
+                .iter()
+                .map(|&(o, s)| {
+                    (
+                        o,
+                        if o == k {
+                            s
+                        } else {
+                            Spread::Normal { sigma: 0.1 }
+                        },
+                    )
+                })
+                .collect();
+            let (r, _) = draw(&PlantParams::NOMINAL, &mixed, seed);
+            assert_eq!(k.get(&r).to_bits(), bits);
+        }
+    }
+
+    /// Normal and lognormal draws: deterministic per seed, within their
+    /// truncation, and over 4000 fixed seeds with the mean and standard
+    /// deviation of a normal truncated at 3 sigma (sd 0.98658 sigma).
+    #[test]
+    fn normal_and_lognormal_draws_have_their_moments() {
+        let m = find("m_kg").unwrap();
+        let beta = find("beta_e_pa").unwrap();
+        let spreads = [
+            (m, Spread::Normal { sigma: 0.1 }),
+            (beta, Spread::LogNormal { sigma: 0.3 }),
+        ];
+        let base = PlantParams::NOMINAL;
+        assert_eq!(draw(&base, &spreads, 5), draw(&base, &spreads, 5));
+        let n = 4000;
+        let (mut zs, mut ls) = (Vec::new(), Vec::new());
+        for seed in 0..n {
+            let (p, d) = draw(&base, &spreads, seed);
+            assert_eq!(d.len(), 2);
+            for (k, s) in &spreads {
+                let (lo, hi) = s.bounds(k.get(&base));
+                assert!((lo..=hi).contains(&k.get(&p)), "seed {seed}: {}", k.name);
+            }
+            zs.push((p.m_kg / base.m_kg - 1.0) / 0.1);
+            ls.push(libm::log(p.beta_e_pa / base.beta_e_pa) / 0.3);
+        }
+        // The truncated standard normal's sd: 1 - 2 k phi(k) / (2 Phi(k) - 1).
+        let k = TRUNCATE_SIGMAS;
+        let phi = libm::exp(-k * k / 2.0) / (2.0 * std::f64::consts::PI).sqrt();
+        let sd_want = (1.0 - 2.0 * k * phi / libm::erf(k / 2f64.sqrt())).sqrt();
+        assert!((sd_want - 0.98658).abs() < 1e-5, "{sd_want}");
+        for (what, z) in [("normal", &zs), ("lognormal", &ls)] {
+            let mean = z.iter().sum::<f64>() / n as f64;
+            let sd = (z.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+            // Standard errors: 1 / sqrt(n) = 0.016 for the mean, about
+            // 1 / sqrt(2 n) = 0.011 for the sd; the bounds are 4 of them.
+            assert!(mean.abs() < 0.064, "{what}: mean {mean}");
+            assert!((sd - sd_want).abs() < 0.045, "{what}: sd {sd}");
+            assert!(z.iter().all(|x| x.abs() <= k + 1e-9), "{what}");
+            // Truncated, not clipped: no mass piles up at the ends.
+            assert!(!z.iter().any(|x| x.abs() > k - 1e-9), "{what}");
+        }
+        // Bounds: a band for uniform, the truncation for the others.
+        let u = Spread::Uniform { half_width: 0.1 };
+        assert_eq!(u.bounds(-2.0), (-2.2, -1.8));
+        let (lo, hi) = Spread::LogNormal { sigma: 0.25 }.bounds(1.0);
+        assert!((lo - libm::exp(-0.75)).abs() < 1e-15 && (hi - libm::exp(0.75)).abs() < 1e-15);
+        assert_eq!(
+            Spread::Normal { sigma: 0.05 }.to_string(),
+            "normal sigma 0.05"
+        );
     }
 }

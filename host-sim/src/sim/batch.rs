@@ -9,10 +9,11 @@
 //!
 //! Monte Carlo over the rig ([`Perturb`], `sweep --perturb F`): for each seed
 //! the listed plant parameters are drawn uniformly within +-F of the rig's
-//! value ([`crate::model::params::draw`]); the controller keeps its design
-//! model, so each run tests robustness to a rig that is not the model. The
-//! drawn values are `plant.<key>` columns of the CSV and metadata lines of
-//! the run logs (`--logs DIR`).
+//! value ([`crate::model::params::draw`]), or each by its tolerance in a
+//! spec (`sweep --perturb-spec FILE`, [`crate::sim::tolerance`]); the
+//! controller keeps its design model, so each run tests robustness to a rig
+//! that is not the model. The drawn values are `plant.<key>` columns of the
+//! CSV and metadata lines of the run logs (`--logs DIR`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -23,12 +24,14 @@ use rayon::prelude::*;
 use crate::io::files::{self, PathError};
 use crate::io::num::Num;
 use crate::io::runlog::LogError;
-use crate::model::params::{self, ParamKey, ParamsError};
+use crate::model::params::{self, ParamKey, ParamsError, Spread};
 use crate::model::plant::Plant;
 use crate::sim::config::{check_value, controller_param, set_param, ParamError};
 use crate::sim::metrics::Metrics;
 use crate::sim::request::{log_meta_with, resolve, trace_metrics, RequestError, RunRequest};
+use crate::sim::tolerance::ToleranceSpec;
 use crate::sim::{run, SimError};
+use dca_core::params::PlantParams;
 
 /// Why a sweep parameter, the sweep or one of its runs failed.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -70,18 +73,28 @@ pub enum SweepError {
     Log(#[from] LogError),
 }
 
-/// Monte Carlo draws of the rig's parameters.
+/// Where the draws of a [`Perturb`] come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PerturbSource {
+    /// `--perturb F`: every listed key uniformly within +-F.
+    Fraction(f64),
+    /// `--perturb-spec FILE`: the tolerances of the spec in that file.
+    Spec(String),
+}
+
+/// Monte Carlo draws of the rig's parameters: which keys, how each is drawn.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Perturb {
-    /// Half-width of the uniform draw, as a fraction of each value, in [0, 1).
-    pub fraction: f64,
-    /// The parameters drawn.
-    pub keys: Vec<&'static ParamKey>,
+    /// The parameters drawn, each with its spread.
+    pub spreads: Vec<(&'static ParamKey, Spread)>,
+    /// `--perturb F` or `--perturb-spec FILE`.
+    pub source: PerturbSource,
 }
 
 impl Perturb {
-    /// `fraction` (in [0, 1)) and the keys `k1,k2,...` (default: the
-    /// physical ones, [`params::physical_keys`]).
+    /// `--perturb F`: `fraction` (in [0, 1)) and the keys `k1,k2,...`
+    /// (default: the physical ones, [`params::physical_keys`]), each drawn
+    /// uniformly within +-`fraction`.
     pub fn new(fraction: f64, keys: Option<&str>) -> Result<Self, SweepError> {
         if !(fraction.is_finite() && (0.0..1.0).contains(&fraction)) {
             return Err(SweepError::Perturb(format!(
@@ -94,7 +107,57 @@ impl Perturb {
             Some(list) => params::parse_keys(list)
                 .map_err(|e| SweepError::Perturb(format!("--perturb-keys: {e}")))?,
         };
-        Ok(Self { fraction, keys })
+        let spread = Spread::Uniform {
+            half_width: fraction,
+        };
+        Ok(Self {
+            spreads: keys.into_iter().map(|k| (k, spread)).collect(),
+            source: PerturbSource::Fraction(fraction),
+        })
+    }
+
+    /// `--perturb-spec FILE`: the keys of the spec, each by its tolerance.
+    pub fn from_spec(spec: &ToleranceSpec) -> Self {
+        Self {
+            spreads: spec.tolerances.iter().map(|t| (t.key, t.spread)).collect(),
+            source: PerturbSource::Spec(spec.file.clone()),
+        }
+    }
+
+    /// The rig for `seed` around `base` ([`params::draw`]) and the drawn values.
+    pub fn draw(
+        &self,
+        base: &PlantParams,
+        seed: u64,
+    ) -> (PlantParams, Vec<(&'static ParamKey, f64)>) {
+        params::draw(base, &self.spreads, seed)
+    }
+
+    /// How the rig is drawn, for a report (Markdown): the source and every key.
+    pub fn describe(&self) -> String {
+        match &self.source {
+            PerturbSource::Fraction(f) => {
+                let keys: Vec<&str> = self.spreads.iter().map(|(k, _)| k.name).collect();
+                format!(
+                    "Rig drawn per seed uniformly within +-{} of its value: {}",
+                    Num(*f),
+                    keys.join(", ")
+                )
+            }
+            PerturbSource::Spec(file) => {
+                let keys: Vec<String> = self
+                    .spreads
+                    .iter()
+                    .map(|(k, s)| format!("`{}` {s}", k.name))
+                    .collect();
+                format!(
+                    "Rig drawn per seed from the tolerance spec `{file}` (normal and lognormal \
+                     truncated at {} sigma): {}",
+                    Num(params::TRUNCATE_SIGMAS),
+                    keys.join(", ")
+                )
+            }
+        }
     }
 }
 
@@ -263,10 +326,7 @@ pub fn sweep_with(
         .into_par_iter()
         .enumerate()
         .map(|(index, (assign, seed))| {
-            let rig = opts
-                .perturb
-                .as_ref()
-                .map(|pt| params::draw(&base_rig, &pt.keys, pt.fraction, seed));
+            let rig = opts.perturb.as_ref().map(|pt| pt.draw(&base_rig, seed));
             let plant = rig
                 .as_ref()
                 .map(|(_, d)| d.iter().map(|(k, v)| (k.column, *v)).collect())
@@ -474,5 +534,42 @@ mod tests {
             .to_string();
         assert!(e.contains("mass") && e.contains("beta_e_pa"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The shipped spec through [`Perturb`]: the same rig for the same seed,
+    /// every key within its tolerance, every rig physical, the values in
+    /// [`params::KEYS`] order (the CSV's `plant.<key>` columns).
+    #[test]
+    fn spec_draws_are_reproducible_and_within_tolerance() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/tolerances/dca-rig.toml");
+        let spec = crate::sim::tolerance::read_spec(&path).unwrap();
+        let pt = Perturb::from_spec(&spec);
+        assert_eq!(pt.source, PerturbSource::Spec(path.display().to_string()));
+        let base = PlantParams::NOMINAL;
+        let order: Vec<&str> = params::physical_keys().iter().map(|k| k.name).collect();
+        for seed in 0..200 {
+            let (p, drawn) = pt.draw(&base, seed);
+            assert_eq!((p, drawn.clone()), pt.draw(&base, seed));
+            params::check(&p).unwrap();
+            let names: Vec<&str> = drawn.iter().map(|(k, _)| k.name).collect();
+            assert_eq!(names, order);
+            for t in &spec.tolerances {
+                let (lo, hi) = t.spread.bounds(t.key.get(&base));
+                assert!((lo..=hi).contains(&t.key.get(&p)), "{seed}: {}", t.key.name);
+            }
+        }
+        assert_ne!(pt.draw(&base, 0).0, pt.draw(&base, 1).0);
+        // A key not in the spec is not drawn.
+        let only = Perturb::from_spec(
+            &crate::sim::tolerance::spec_str(
+                "[hose.ps_pa]\ndist = \"uniform\"\nhalf_width = 0.5\nreason = \"r\"\n",
+                "s.toml",
+            )
+            .unwrap(),
+        );
+        let (p, drawn) = only.draw(&base, 3);
+        assert_eq!(drawn.len(), 1);
+        assert_eq!(p.m_kg, base.m_kg);
+        assert_ne!(p.hose.ps_pa, base.hose.ps_pa);
     }
 }

@@ -101,12 +101,13 @@ impl std::fmt::Display for FileError {
 
 impl std::error::Error for FileError {}
 
-fn line_of(text: &str, offset: usize) -> usize {
+/// The 1-based line of byte `offset` in `text`.
+pub(crate) fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].matches('\n').count() + 1
 }
 
 /// Parse TOML into `T`, mapping parse and type errors to file and line.
-fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> Result<T, FileError> {
+pub(crate) fn parse<T: for<'de> Deserialize<'de>>(text: &str, file: &str) -> Result<T, FileError> {
     toml::from_str(text).map_err(|e: toml::de::Error| {
         let line = e.span().map(|s| line_of(text, s.start));
         // The message names the key for unknown or mistyped fields. The
@@ -175,7 +176,8 @@ pub fn read_plant_file(path: &Path) -> Result<PlantParams, FileError> {
     plant_params_str(&read(path)?, &path.display().to_string())
 }
 
-fn read(path: &Path) -> Result<String, FileError> {
+/// The text of `path`, or the error naming it.
+pub(crate) fn read(path: &Path) -> Result<String, FileError> {
     std::fs::read_to_string(path).map_err(|e| FileError {
         file: path.display().to_string(),
         line: None,

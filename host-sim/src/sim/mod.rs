@@ -7,7 +7,8 @@
 //! * [`metrics`]: the performance metrics of docs/model.md section 8;
 //! * [`request`]: `host-sim run`'s request resolved into a [`RunSpec`];
 //! * [`config`]: controller configurations and custom scenarios from TOML;
-//! * [`batch`]: parameter sweeps and Monte Carlo seeds on every core.
+//! * [`batch`]: parameter sweeps and Monte Carlo seeds on every core;
+//! * [`tolerance`]: the tolerance specs the Monte Carlo draws rigs from.
 //!
 //! May import from [`crate::io`], [`crate::model`] and `sim` itself.
 //!
@@ -36,6 +37,7 @@ pub mod closed_loop;
 pub mod config;
 pub mod metrics;
 pub mod request;
+pub mod tolerance;
 
 use dca_core::controller::{Controller, ControllerConfig, Output, Sample};
 
