@@ -6,10 +6,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use dca_core::controller::ControllerKind;
+use dca_core::params::PlantParams;
 use host_sim::gap::diagnose::Options;
-use host_sim::gap::run_gap;
 use host_sim::gap::validation::{check_scenario, fit_scenario, rig_log};
+use host_sim::gap::{run_gap, Outputs};
 use host_sim::model::effects::{EffectKind, Effects};
+use host_sim::sim::config::read_plant_file;
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dca-gap-{name}-{}", std::process::id()));
@@ -32,15 +34,30 @@ fn json_report_has_the_contract_fields() {
         .unwrap();
     let json = d.join("report.json");
     let report = d.join("report");
+    let rig_out = d.join("rig.toml");
     let diag = run_gap(
         &[fit],
         &[check],
-        Some(&json),
-        Some(&report),
+        Outputs {
+            json: Some(&json),
+            report: Some(&report),
+            rig_out: Some(&rig_out),
+        },
         &Options::default(),
     )
     .unwrap();
     assert_eq!(diag.verdict, "leakage");
+    // The identified rig: the verdict's effect with the fitted conductance,
+    // read back by `--plant` bit for bit, nominal parameters.
+    let rig = read_plant_file(&rig_out).unwrap();
+    let g = rig
+        .effects
+        .leakage
+        .expect("the leakage in the rig file")
+        .g_m3pspa;
+    assert_eq!(g, diag.candidates[0].params["g_m3pspa"], "{rig:?}");
+    assert_eq!(rig.params, PlantParams::NOMINAL);
+    assert_eq!(rig.effects.active(), [EffectKind::Leakage]);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     for key in [
@@ -141,8 +158,10 @@ fn bad_logs_name_file_line_and_column() {
         let err = run_gap(
             std::slice::from_ref(&p),
             std::slice::from_ref(&check),
-            Some(&d.join("r.json")),
-            None,
+            Outputs {
+                json: Some(&d.join("r.json")),
+                ..Outputs::default()
+            },
             &Options::default(),
         )
         .unwrap_err()
@@ -150,7 +169,7 @@ fn bad_logs_name_file_line_and_column() {
         let want = format!("{}:{line}: column '{column}'", p.display());
         assert!(err.starts_with(&want), "{err}\nwant {want}");
     }
-    let e = run_gap(&[], &[check], None, None, &Options::default())
+    let e = run_gap(&[], &[check], Outputs::default(), &Options::default())
         .unwrap_err()
         .to_string();
     assert!(e.contains("--fit"), "{e}");

@@ -310,7 +310,8 @@ const INPUTS: [&str; 6] = [
     "--plant",
 ];
 /// Options whose values are files or directories a host-sim command writes.
-const OUTPUTS: [&str; 7] = [
+const OUTPUTS: [&str; 8] = [
+    "--rig-out",
     "--log",
     "--capture",
     "--out",

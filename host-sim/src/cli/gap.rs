@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use host_sim::gap::diagnose::Options;
 use host_sim::gap::diagnosis::Diagnosis;
-use host_sim::gap::run_gap;
+use host_sim::gap::{run_gap, Outputs};
 use host_sim::io::num::Num;
 
 use super::args::input_file;
@@ -21,9 +21,14 @@ pub struct Args {
     #[arg(long)]
     json: Option<PathBuf>,
     /// Directory for the Markdown report with plots (optional). Without
-    /// --json and --report the verdict and its key numbers go to stdout.
+    /// --json, --report and --rig-out the verdict and its key numbers go to stdout.
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Write the rig as the diagnosis identified it (re-estimated parameters,
+    /// the verdict's effect with its fitted parameters) as a rig file that
+    /// `--plant RIG.toml` runs and `host-sim tune --plant` tunes for.
+    #[arg(long, value_name = "RIG.toml")]
+    rig_out: Option<PathBuf>,
 }
 
 /// The runs' files exist, and no file is given twice: a run given as a fit
@@ -57,14 +62,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         progress: true,
         ..Default::default()
     };
-    let d = run_gap(
-        &a.fit,
-        &a.check,
-        a.json.as_deref(),
-        a.report.as_deref(),
-        &opts,
-    )?;
-    let written: Vec<String> = [a.json.as_deref(), a.report.as_deref()]
+    let out = Outputs {
+        json: a.json.as_deref(),
+        report: a.report.as_deref(),
+        rig_out: a.rig_out.as_deref(),
+    };
+    let d = run_gap(&a.fit, &a.check, out, &opts)?;
+    let written: Vec<String> = [a.json.as_deref(), a.report.as_deref(), a.rig_out.as_deref()]
         .into_iter()
         .flatten()
         .map(|p| p.display().to_string())

@@ -18,6 +18,7 @@ mod hose;
 mod paper;
 mod run;
 mod sweep;
+mod tune;
 
 /// Simulator and tools for the miniature double-cylinder hydraulic actuator.
 #[derive(Parser, Debug)]
@@ -58,6 +59,10 @@ enum Command {
     Run(run::Args),
     /// Print the MPC design (matrices and gains) of both MPC variants as JSON.
     Gains(gains::Args),
+    /// Controller settings for a rig (a `gap --rig-out` file): the design model
+    /// set to it, the settings that matter searched, checked around it; writes
+    /// a configuration file, a console script and a report.
+    Tune(tune::Args),
 }
 
 /// Run the subcommand.
@@ -76,6 +81,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Paper(a) => paper::run(a),
         Command::Run(a) => run::run(a),
         Command::Gains(a) => gains::run(a),
+        Command::Tune(a) => tune::run(a),
     }
 }
 

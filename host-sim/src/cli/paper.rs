@@ -34,7 +34,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rig: match &a.plant {
             Some(p) => {
                 input_file("--plant", p)?;
-                read_plant_file(p)?
+                let rig = read_plant_file(p)?;
+                if !rig.effects.active().is_empty() {
+                    anyhow::bail!(
+                        "--plant {}: `paper` runs a rig's parameters, not its effects ({}); \
+                         run the scenarios with `host-sim run --plant` instead",
+                        p.display(),
+                        rig.effects
+                            .active()
+                            .iter()
+                            .map(|k| k.name())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    );
+                }
+                rig.params
             }
             None => PlantParams::NOMINAL,
         },

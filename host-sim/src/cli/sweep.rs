@@ -2,9 +2,14 @@
 
 use std::path::PathBuf;
 
-use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, SweepParam};
+use std::sync::Arc;
+
+use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, Retune, SweepParam};
+use host_sim::sim::request::resolve;
 use host_sim::sim::tolerance::read_spec;
+use host_sim::studies::commission::{commission, Commissioning};
 use host_sim::studies::montecarlo::{outcome, write_report};
+use host_sim::studies::tune::{self, Robust};
 
 use super::args::{RunOpts, CONTROL_TICK_HELP};
 
@@ -39,7 +44,16 @@ pub struct Args {
     /// host-sim/data/tolerances/dca-rig.toml; keys not listed are not drawn.
     #[arg(long, value_name = "FILE", conflicts_with = "perturb")]
     perturb_spec: Option<PathBuf>,
-    /// Also write each run's log as DIR/run-<index>.csv.
+    /// Commission every rig before its run (docs/control.md "Commissioning"): the
+    /// identification runs on it (realistic sensors), `gap --rig-out`, `tune`; the
+    /// run then uses the tuned settings. CSV columns `tuned.<path>`.
+    #[arg(long)]
+    commission: bool,
+    /// Objective evaluations of each tune (--commission).
+    #[arg(long, value_name = "N", default_value_t = 40, requires = "commission")]
+    commission_evals: u64,
+    /// Also write each run's log as DIR/run-<index>.csv (with --commission also
+    /// DIR/commission-<index>/: identification logs, identified rig, tuned settings).
     #[arg(long, value_name = "DIR")]
     logs: Option<PathBuf>,
     /// Write a Markdown report with histograms of the metrics to DIR/report.md.
@@ -96,7 +110,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let setup = setup_text(&a, perturb.as_ref(), seeds.len());
     let base = a.what.request(None, None, a.control_tick);
     let t0 = std::time::Instant::now();
+    let retune = if a.commission {
+        Some(retune(a.commission_evals, a.logs.clone(), &base)?)
+    } else {
+        None
+    };
     let opts = BatchOptions {
+        retune,
         perturb,
         logs: a.logs.clone(),
         progress: true,
@@ -125,6 +145,39 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The commissioning step of `--commission`: the base request's controller,
+/// hose and effects; the tuned settings' columns.
+fn retune(
+    evals: u64,
+    keep: Option<PathBuf>,
+    base: &host_sim::sim::request::RunRequest,
+) -> anyhow::Result<Retune> {
+    let spec = resolve(base)?;
+    let c = Commissioning {
+        base: spec.controller,
+        preset: tune::preset_of(base.config.as_deref())?,
+        hose: spec.plant.hose_model(),
+        effects: spec.effects,
+        max_evals: evals,
+        robust: Robust {
+            draws: 4,
+            fraction: 0.1,
+        },
+        keep,
+    };
+    tune::Knob::of(spec.controller.kind)?;
+    Ok(Retune(Arc::new(move |rig, seed, index| {
+        let done = commission(&c, rig, seed, index)?;
+        let mut columns = vec![("verdict".to_string(), done.verdict)];
+        columns.extend(
+            done.changed
+                .iter()
+                .map(|(p, v)| (p.to_string(), format!("{v:e}"))),
+        );
+        Ok((done.config, columns))
+    })))
 }
 
 /// What the sweep ran, for the report (Markdown).

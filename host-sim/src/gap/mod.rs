@@ -37,6 +37,7 @@ pub mod diagnosis;
 pub mod equations;
 pub mod fit;
 pub mod grey_box;
+pub mod identified;
 pub mod isolate;
 pub mod localise;
 pub mod lsq;
@@ -113,26 +114,45 @@ fn load(paths: &[PathBuf]) -> Result<Vec<Run>, GapError> {
         .collect()
 }
 
-/// Diagnose the logs; with `json`, write the JSON to that file and, with
-/// `report`, the Markdown report into that directory.
+/// What `run_gap` writes besides returning the diagnosis.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Outputs<'a> {
+    /// The JSON report (docs/interfaces.md section 2).
+    pub json: Option<&'a Path>,
+    /// The directory of the Markdown report with plots.
+    pub report: Option<&'a Path>,
+    /// The identified rig as a rig file ([`identified`]).
+    pub rig_out: Option<&'a Path>,
+}
+
+/// Diagnose the logs and write what `out` asks for.
 pub fn run_gap(
     fit: &[PathBuf],
     check: &[PathBuf],
-    json: Option<&Path>,
-    report: Option<&Path>,
+    out: Outputs<'_>,
     opts: &Options,
 ) -> Result<Diagnosis, GapError> {
     if fit.is_empty() || check.is_empty() {
         return Err(GapError::NoRuns);
     }
+    let names = |ps: &[PathBuf]| {
+        ps.iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let runs = format!("fit runs {}; check runs {}", names(fit), names(check));
     let (fit, check) = (load(fit)?, load(check)?);
     let (d, details) = diagnose::diagnose(fit, check, &Plant::nominal(), opts);
-    if let Some(json) = json {
+    if let Some(json) = out.json {
         let text = serde_json::to_string_pretty(&d).map_err(GapError::Json)?;
         files::write(json, text)?;
     }
-    if let Some(dir) = report {
+    if let Some(dir) = out.report {
         report::write(dir, &d, &details)?;
+    }
+    if let Some(path) = out.rig_out {
+        files::write(path, identified::rig_text(&d, &details, &runs))?;
     }
     Ok(d)
 }

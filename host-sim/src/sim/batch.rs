@@ -17,6 +17,10 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use dca_core::controller::ControllerConfig;
+use dca_core::params::PlantParams;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -31,7 +35,6 @@ use crate::sim::metrics::Metrics;
 use crate::sim::request::{log_meta_with, resolve, trace_metrics, RequestError, RunRequest};
 use crate::sim::tolerance::ToleranceSpec;
 use crate::sim::{run, SimError};
-use dca_core::params::PlantParams;
 
 /// Why a sweep parameter, the sweep or one of its runs failed.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -65,6 +68,9 @@ pub enum SweepError {
     /// A drawn rig is not physical (e.g. a fraction near 1).
     #[error("drawn rig not physical: `{}`: {}", .0.key, .0.message)]
     Draw(ParamsError),
+    /// Commissioning the drawn rig failed (`--commission`).
+    #[error("commissioning: {0}")]
+    Commission(String),
     /// The run-log directory could not be created.
     #[error("--logs: {0}")]
     LogDir(String),
@@ -161,9 +167,36 @@ impl Perturb {
     }
 }
 
+/// Commissioning of each run's rig before the run (`sweep --commission`):
+/// from the rig, the seed and the run's index, the tuned configuration that
+/// replaces the request's controller and the columns to report
+/// (`tuned.<name>`, value), or why it failed. The sweep calls it; what it
+/// does (identification runs, diagnosis, tune) lies in `studies`.
+#[derive(Clone)]
+#[allow(clippy::type_complexity)]
+pub struct Retune(
+    pub  Arc<
+        dyn Fn(
+                &PlantParams,
+                u64,
+                usize,
+            ) -> Result<(ControllerConfig, Vec<(String, String)>), String>
+            + Send
+            + Sync,
+    >,
+);
+
+impl std::fmt::Debug for Retune {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Retune(..)")
+    }
+}
+
 /// What a batch does besides the metrics.
 #[derive(Clone, Debug, Default)]
 pub struct BatchOptions {
+    /// Commission each run's rig first (`--commission`).
+    pub retune: Option<Retune>,
     /// Draw the rig per seed.
     pub perturb: Option<Perturb>,
     /// Write each run's log as `DIR/run-<index>.csv`.
@@ -188,7 +221,7 @@ impl SweepParam {
             .split_once('=')
             .ok_or_else(|| SweepError::Syntax(s.to_string()))?;
         let parts: Vec<&str> = path.split('.').collect();
-        if parts.len() != 2 || parts.iter().any(|p| p.is_empty()) {
+        if !(2..=3).contains(&parts.len()) || parts.iter().any(|p| p.is_empty()) {
             return Err(SweepError::Path(path.to_string()));
         }
         let values = vals
@@ -230,6 +263,8 @@ pub struct BatchRow {
     pub seed: u64,
     /// Metrics, or why the run failed (e.g. a design refused).
     pub result: Result<Metrics, SweepError>,
+    /// What commissioning set (`tuned.<name>`, value; empty without it).
+    pub tuned: Vec<(String, String)>,
 }
 
 /// Run every combination of `params` and `seeds` on `base` (in parallel).
@@ -277,20 +312,31 @@ fn jobs(params: &[SweepParam], seeds: &[u64]) -> Vec<(Vec<(String, f64)>, u64)> 
 fn one_run(
     base: &RunRequest,
     assign: &[(String, f64)],
-    seed: u64,
-    rig: Option<&(dca_core::params::PlantParams, Vec<&'static ParamKey>)>,
+    (seed, index): (u64, usize),
+    rig: Option<&(PlantParams, Vec<&'static ParamKey>)>,
     log: Option<&Path>,
+    retune: Option<&Retune>,
+    tuned: &mut Vec<(String, String)>,
 ) -> Result<Metrics, SweepError> {
     let mut spec = resolve(&RunRequest {
         seed: Some(seed),
         ..base.clone()
     })?;
-    for (path, v) in assign {
-        set_param(&mut spec.controller, path, *v)?;
-    }
     if let Some((p, _)) = rig {
         params::check(p).map_err(SweepError::Draw)?;
         spec.plant = Plant::new(*p, spec.plant.hose_model());
+    }
+    if let Some(r) = retune {
+        let (cfg, columns) =
+            (r.0)(spec.plant.params(), seed, index).map_err(SweepError::Commission)?;
+        spec.controller = ControllerConfig {
+            base_dt_s: spec.controller.base_dt_s,
+            ..cfg
+        };
+        *tuned = columns;
+    }
+    for (path, v) in assign {
+        set_param(&mut spec.controller, path, *v)?;
     }
     let trace = run(&spec)?;
     if let Some(path) = log {
@@ -336,7 +382,16 @@ pub fn sweep_with(
                 .logs
                 .as_ref()
                 .map(|d| d.join(format!("run-{index}.csv")));
-            let result = one_run(base, &assign, seed, rig.as_ref(), log.as_deref());
+            let mut tuned = Vec::new();
+            let result = one_run(
+                base,
+                &assign,
+                (seed, index),
+                rig.as_ref(),
+                log.as_deref(),
+                opts.retune.as_ref(),
+                &mut tuned,
+            );
             bar.inc(1);
             BatchRow {
                 index,
@@ -344,6 +399,7 @@ pub fn sweep_with(
                 plant,
                 seed,
                 result,
+                tuned,
             }
         })
         .collect();
@@ -368,6 +424,14 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
             .map(|r| r.plant.iter().map(|p| p.0.to_string()).collect::<Vec<_>>())
             .unwrap_or_default(),
     );
+    // The commissioning's columns: every name any row has, in first-seen order.
+    let mut tuned_names: Vec<String> = Vec::new();
+    for (n, _) in rows.iter().flat_map(|r| &r.tuned) {
+        if !tuned_names.contains(n) {
+            tuned_names.push(n.clone());
+        }
+    }
+    header.extend(tuned_names.iter().map(|n| format!("tuned.{n}")));
     header.extend(
         [
             "seed",
@@ -387,6 +451,13 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
     for r in rows {
         let mut f: Vec<String> = r.params.iter().map(|p| format!("{}", p.1)).collect();
         f.extend(r.plant.iter().map(|p| format!("{:e}", p.1)));
+        f.extend(tuned_names.iter().map(|n| {
+            r.tuned
+                .iter()
+                .find(|(m, _)| m == n)
+                .map(|(_, v)| v.clone())
+                .unwrap_or_default()
+        }));
         f.push(r.seed.to_string());
         match &r.result {
             Ok(m) => {
@@ -493,7 +564,7 @@ mod tests {
         let opts = BatchOptions {
             perturb: Some(Perturb::new(0.1, None).unwrap()),
             logs: Some(dir.join("logs")),
-            progress: false,
+            ..BatchOptions::default()
         };
         let rows = sweep_with(&base, &[], &[0, 1, 2, 3], &opts).unwrap();
         assert_eq!(rows.len(), 4);

@@ -65,12 +65,13 @@ use dca_app::settings::{self, Param, ParamKind};
 use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 use dca_core::params::PlantParams;
 use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, Visitor};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use crate::io::num::Num;
 use crate::io::toml_key::KeySeed;
-use crate::model::params::{ParamsError, ParamsToml};
+use crate::model::effects::Effects;
+use crate::model::params::{self, ParamKey, ParamsError, ParamsToml};
 use crate::model::scenario::{Command, Piecewise, PiecewiseError, Scenario, Signal};
 
 /// An error in a TOML file: file, line, field, message.
@@ -170,10 +171,110 @@ pub fn plant_params_str(text: &str, file: &str) -> Result<PlantParams, FileError
     t.params().map_err(|e| params_error(text, file, "", e))
 }
 
-/// A rig's physical parameters from a file (`--plant FILE.toml`), as
-/// [`plant_params_str`].
-pub fn read_plant_file(path: &Path) -> Result<PlantParams, FileError> {
-    plant_params_str(&read(path)?, &path.display().to_string())
+/// A rig file (`--plant FILE.toml`): the rig's physical parameters and its
+/// unmodelled effects.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigFile {
+    /// The rig's parameters (nominal where the file gives none).
+    pub params: PlantParams,
+    /// Its effects (none in the short form).
+    pub effects: Effects,
+}
+
+/// The long form of a rig file: a scenario's `[plant]` table with only
+/// `[plant.params]` and `[plant.effects.<name>]` (what `gap --rig-out` writes).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RigToml {
+    plant: RigSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RigSection {
+    params: Option<ParamsToml>,
+    effects: Option<Effects>,
+}
+
+/// A rig from TOML text in either form: the short one (PlantParams keys at
+/// top level and `[hose]`, [`plant_params_str`]) or the long one
+/// (`[plant.params]`, `[plant.params.hose]` and `[plant.effects.<name>]`, as
+/// in a scenario file and as `gap --rig-out` writes). The form is the one of
+/// the first table: a top-level `plant` table is the long form.
+pub fn rig_str(text: &str, file: &str) -> Result<RigFile, FileError> {
+    let long = toml::from_str::<toml::Table>(text)
+        .map(|t| t.contains_key("plant"))
+        .unwrap_or(false);
+    if !long {
+        return Ok(RigFile {
+            params: plant_params_str(text, file)?,
+            effects: Effects::default(),
+        });
+    }
+    let t: RigToml = parse(text, file)?;
+    let params = match &t.plant.params {
+        Some(p) => p
+            .params()
+            .map_err(|e| params_error(text, file, "plant.params.", e))?,
+        None => PlantParams::NOMINAL,
+    };
+    let effects = t.plant.effects.unwrap_or_default();
+    effects.validate().map_err(|e| FileError {
+        file: file.to_string(),
+        line: None,
+        field: Some("plant.effects".into()),
+        message: e.to_string(),
+    })?;
+    Ok(RigFile { params, effects })
+}
+
+/// A rig file (`--plant FILE.toml`), as [`rig_str`].
+pub fn read_plant_file(path: &Path) -> Result<RigFile, FileError> {
+    rig_str(&read(path)?, &path.display().to_string())
+}
+
+/// The text of a rig file in the long form of [`rig_str`]: `[plant.params]`
+/// with every parameter that differs from nominal (shortest round-trip
+/// notation, so the file reads back bit for bit) and the effects'
+/// `[plant.effects.<name>]` tables. `header` becomes comment lines.
+pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
+    let mut s: String = header.lines().map(|l| format!("# {l}\n")).collect();
+    let off: Vec<&ParamKey> = params::KEYS
+        .iter()
+        .filter(|k| k.get(&rig.params).to_bits() != k.get(&PlantParams::NOMINAL).to_bits())
+        .collect();
+    let (hose, top): (Vec<&ParamKey>, Vec<&ParamKey>) = off.iter().partition(|k| k.is_hose());
+    if !top.is_empty() {
+        s += "\n[plant.params]\n";
+        for k in &top {
+            s += &format!("{} = {:e}\n", k.name, k.get(&rig.params));
+        }
+    }
+    if !hose.is_empty() {
+        s += "\n[plant.params.hose]\n";
+        for k in &hose {
+            s += &format!("{} = {:e}\n", k.field(), k.get(&rig.params));
+        }
+    }
+    #[derive(Serialize)]
+    struct Out<'a> {
+        plant: OutPlant<'a>,
+    }
+    #[derive(Serialize)]
+    struct OutPlant<'a> {
+        effects: &'a Effects,
+    }
+    if rig.effects != Effects::default() {
+        let t = toml::to_string(&Out {
+            plant: OutPlant {
+                effects: &rig.effects,
+            },
+        })
+        .expect("effects are numbers and tables: TOML can hold them");
+        s += "\n";
+        s += &t;
+    }
+    s
 }
 
 /// The text of `path`, or the error naming it.
@@ -1170,5 +1271,45 @@ preset = "fast"
             "s.toml:6: field 'plant.params.m_kg': invalid value for `m_kg`: 1e308 kg is \
              outside the plausible range 0.001 to 10000 kg"
         );
+    }
+
+    /// A rig file in the long form (what `gap --rig-out` writes) reads back
+    /// bit for bit, parameters and effects; errors name file, line and key.
+    #[test]
+    fn rig_files_round_trip() {
+        let mut effects = Effects::default();
+        effects
+            .parse_arg("leakage:g_m3pspa=1.2345678901234e-13")
+            .unwrap();
+        effects.parse_arg("friction").unwrap();
+        let mut params = PlantParams::NOMINAL;
+        params.m_kg = 57.123456789;
+        params.hose.cs0_m3pp = 4.1e-13;
+        let rig = RigFile { params, effects };
+        let text = rig_file_text(&rig, "a header\nof two lines");
+        assert!(text.starts_with("# a header\n# of two lines\n"), "{text}");
+        assert_eq!(rig_str(&text, "r.toml").unwrap(), rig, "{text}");
+        // The short form still reads, without effects.
+        let short = rig_str("m_kg = 52.5\n", "s.toml").unwrap();
+        assert_eq!(
+            (short.params.m_kg, short.effects),
+            (52.5, Effects::default())
+        );
+        for (text, line, field) in [
+            (
+                "[plant.params]\nm_kg = -1.0\n",
+                Some(2),
+                "plant.params.m_kg",
+            ),
+            ("[plant.effects.leakage]\ng = 1e-13\n", Some(2), "g"),
+            ("[plant]\nhose = \"rigid\"\n", Some(2), "hose"),
+        ] {
+            let e = rig_str(text, "r.toml").unwrap_err();
+            assert_eq!(
+                (e.line, e.field.as_deref()),
+                (line, Some(field)),
+                "{text}: {e}"
+            );
+        }
     }
 }

@@ -11,7 +11,7 @@ use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
 
 use crate::io::num::Num;
 use crate::io::runlog::LogError;
-use crate::model::effects::EffectError;
+use crate::model::effects::{EffectError, Effects};
 use crate::model::params;
 use crate::model::plant::{HoseModel, Plant, NOMINAL_DT_S};
 use crate::model::scenario::{tick_time_s, Command, Scenario, Signal};
@@ -176,9 +176,15 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
     };
     // The board's tick unless a study asks for another (checked by the run).
     controller.base_dt_s = req.control_tick_s.unwrap_or(BOARD_DT_S);
-    let rig = match &req.plant {
-        Some(path) => read_plant_file(Path::new(path))?,
-        None => plant_sec.plant_params(file)?,
+    // A rig file replaces the scenario's [plant.params], and its effects
+    // (if it has any) the scenario's [plant.effects].
+    let (rig, file_effects) = match &req.plant {
+        Some(path) => {
+            let r = read_plant_file(Path::new(path))?;
+            let effects = (r.effects != Effects::default()).then_some(r.effects);
+            (r.params, effects)
+        }
+        None => (plant_sec.plant_params(file)?, None),
     };
     let hose_name = req
         .hose
@@ -201,7 +207,7 @@ pub fn resolve(req: &RunRequest) -> Result<RunSpec, RequestError> {
         NOMINAL_DT_S
     };
     let dt_s = req.dt_s.or(plant_sec.dt_s).unwrap_or(default_dt);
-    let mut effects = plant_sec.effects.unwrap_or_default();
+    let mut effects = file_effects.or(plant_sec.effects).unwrap_or_default();
     effects
         .validate()
         .map_err(|error| RequestError::FileEffects {

@@ -14,7 +14,9 @@
 //! layer ([`crate::gap`]'s validation runs for the bench) and `studies` itself.
 
 pub mod bench;
+pub mod commission;
 pub mod gains;
 pub mod grnn;
 pub mod montecarlo;
 pub mod paper;
+pub mod tune;

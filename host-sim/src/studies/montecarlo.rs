@@ -51,7 +51,8 @@ pub struct Outcome {
     pub failed: usize,
 }
 
-fn is_unstable(m: &Metrics) -> bool {
+/// Whether a finished run is unstable (see the module doc).
+pub fn is_unstable(m: &Metrics) -> bool {
     let finite = |v: Option<f64>| v.is_none_or(f64::is_finite);
     m.max_err_after_2_mm.is_some_and(|e| e > UNSTABLE_ERR_MM)
         || !m.ise_mm2s.is_finite()

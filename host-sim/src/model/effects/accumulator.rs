@@ -1,12 +1,12 @@
 //! The accumulator: the gas temperature relaxing (`accumulator_thermal`) and
 //! its general family, the gas relaxation spectrum.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
 
 /// Accumulator gas temperature relaxation.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct AccumulatorThermal {
     /// Thermal time constant of the gas, s.
@@ -37,7 +37,7 @@ pub const GAS_WEIGHT_SUM_MAX: f64 = 1.0;
 /// relaxation to first order in the temperature; several are heat paths of
 /// different speeds (gas to a foam filling, to the shell, to the mount); a
 /// total above `n_poly - 1` is a bladder or membrane that creeps.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct GasRelaxation {
     /// Weight of each element, dimensionless (non-negative, sum at most

@@ -1,14 +1,14 @@
 //! The coupling between the motor and the power piston: the named `backlash`
 //! and its general family, the screw map.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
 
 use super::common::{interp, segment};
 
 /// Play between motor and power piston.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Backlash {
     /// Total play, m.
@@ -54,7 +54,7 @@ pub const SCREW_DEFLECTION_MAX_M: f64 = 0.02;
 /// crossed where the force turns; a straight `L` a linear spring (the named
 /// form's stiffness); one that flattens with force a Hertzian contact, one
 /// that steepens a preload that gives.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ScrewMap {
     /// `L` at the knots after the first, m (non-negative, non-decreasing).

@@ -1,11 +1,11 @@
 //! The oil: entrained air (`air`).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, NamedEffect, ParamSpec, KAPPA_MAX};
 
 /// Entrained air.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Air {
     /// Air volume fraction at atmospheric pressure.

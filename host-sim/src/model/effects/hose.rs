@@ -1,12 +1,12 @@
 //! The hose wall: its named hysteresis (`hose_hysteresis`) and its general
 //! family, the hysteresis spectrum.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
 
 /// Rate-independent hose-wall hysteresis.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HoseHysteresis {
     /// Compliance added while the play is engaged, m^3/Pa.
@@ -49,7 +49,7 @@ pub const SPECTRUM_YIELDS_PA: [f64; 5] = [1e4, 3e4, 1e5, 3e5, 1e6];
 /// volume is the weighted sum of the elements' outputs. The weights, learned
 /// from the runs, shape the loop: narrow loops from small yields, wide ones
 /// from large.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HysteresisSpectrum {
     /// Compliance of each element when engaged, m^3/Pa (non-negative).

@@ -47,7 +47,7 @@
 //!
 //! A new effect that puts a force on the actuating piston or lets oil from
 //! line 1 to line 2 touches two files: its part file (the form's struct
-//! with `Deserialize`, and `impl NamedEffect` with its part, its
+//! with `Deserialize` and `Serialize`, and `impl NamedEffect` with its part, its
 //! parameters, how it is built from them, its checks and its hook,
 //! [`NamedEffect::piston_force_n`] or [`NamedEffect::leak_flow_m3ps`]) and
 //! one row of `effects!` below (`Kind => field: Form;`, with
@@ -66,7 +66,7 @@
 
 use std::collections::BTreeMap;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::io::num::Num;
 
@@ -111,16 +111,17 @@ macro_rules! effects {
         $kind:ident => $field:ident: $named:ty $(, $family:ident: $general:ty)?;
     )*) => {
         /// The set of active effects (all `None`: the nominal plant).
-        #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+        #[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
         #[serde(deny_unknown_fields)]
         pub struct Effects {
             $(
                 #[doc = concat!("`", stringify!($field), "`.")]
+                #[serde(skip_serializing_if = "Option::is_none")]
                 pub $field: Option<$named>,
                 $(
                     #[doc = concat!("`", stringify!($field),
                         "` in its general family (exclusive with the named form).")]
-                    #[serde(default)]
+                    #[serde(default, skip_serializing_if = "Option::is_none")]
                     pub $family: Option<$general>,
                 )?
             )*

@@ -1,7 +1,7 @@
 //! The rig's nominal parameters off by ratios (`parameters`).
 
 use dca_core::params::PlantParams;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, NamedEffect, ParamSpec};
 
@@ -11,7 +11,7 @@ use super::common::one;
 /// grey-box re-estimate (`parameters`). To set a simulated rig's parameters
 /// directly, `[plant.params]` is the way; this is that same change as an
 /// effect, so that a candidate is one [`Effects`](super::Effects).
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ParameterRatios {
     /// Actuating piston and load mass, `m_kg`.

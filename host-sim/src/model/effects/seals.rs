@@ -1,14 +1,14 @@
 //! Seals: internal leakage across the pistons and seal friction on the actuating
 //! piston, each as its named form and its general family.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
 
 use super::common::{interp, one};
 
 /// Internal leakage across the pistons.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Leakage {
     /// Conductance from line 1 to line 2 at a 1 MPa difference, m^3/(s Pa).
@@ -33,7 +33,7 @@ pub const LEAK_DP_PA: [f64; 6] = [0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6];
 /// along its last segment). A straight `L` is laminar flow, a bent one an
 /// orifice or a seal lip that opens; `g` is a gap that widens with the
 /// pressure.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct LeakageMap {
     /// Flow at the knots 0.25, 0.5, 1, 2, 4 MPa, m^3/s (non-negative).
@@ -73,7 +73,7 @@ pub fn leak_flow_m3ps(l: &Leakage, p1_pa: f64, p2_pa: f64) -> f64 {
 }
 
 /// Seal friction on the actuating piston beyond the viscous term.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Friction {
     /// Coulomb (sliding) friction, N.
@@ -106,7 +106,7 @@ pub const SEAL_P_REF_PA: f64 = 1e6;
 /// (smoothed as the named form is, over 0.1 mm/s). A falling `S` is a
 /// Stribeck curve, a rising one adds viscous-like drag, `k` is the load
 /// of seals that the line pressures press against the rod and bore.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct FrictionMap {
     /// Friction at the knot speeds with both lines at 0 Pa, N (non-negative).

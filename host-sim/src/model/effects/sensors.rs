@@ -1,14 +1,14 @@
 //! The sensors: `sensor_delay` and `sensor_calibration`, each as its named form
 //! and its general family (the sensor filter, the sensor map).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
 
 use super::common::{interp, one};
 
 /// Delay and lag of the measurements.
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorDelay {
     /// Transport delay of the LVDT reading, s.
@@ -38,7 +38,7 @@ pub const FILTER_DELAYS_S: [f64; FILTER_TAPS] = [
 /// delays [`FILTER_DELAYS_S`] (between samples `v` is interpolated
 /// linearly). One weight is a pure delay, weights falling off with the
 /// delay a first-order lag, equal weights a moving average.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorFilter {
     /// The sensor (not the force sensor, whose reading drives the load).
@@ -73,7 +73,7 @@ impl SensorFilter {
 }
 
 /// The channel a [`SensorCalibration`] acts on.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
 pub enum CalChannel {
     /// The LVDT, Xo.
     #[serde(rename = "xo_m")]
@@ -140,7 +140,7 @@ impl CalChannel {
 
 /// A static calibration error of one sensor: it records
 /// `offset_si + gain_1 v + quad_1 v^2 / span` for the true value `v`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorCalibration {
     /// The sensor.
@@ -185,7 +185,7 @@ pub const MAP_KNOTS: usize = 6;
 /// monotone shape on one of the sensors): the
 /// channel records the piecewise-linear interpolation of `(knots_si,
 /// readings_si)` at its true value, extended linearly beyond the end knots.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorMap {
     /// The sensor.

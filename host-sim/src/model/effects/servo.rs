@@ -1,12 +1,12 @@
 //! The servo drive: the named `motor_limit` and its general family, the force
 //! envelope over speed.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
 
 /// Servo torque and acceleration limits.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MotorLimit {
     /// Largest axial force of the drive on the screw, N.
@@ -42,7 +42,7 @@ pub const ENVELOPE_SPEEDS_MPS: [f64; 6] = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10];
 /// flat beyond the last; while braking at most `A(0)`. A constant `A` is
 /// the named form's force limit, `A` falling to zero at some speed its speed
 /// cap, and any torque-speed curve lies in between.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ServoEnvelope {
     /// Motor and screw inertia reflected to the screw axis, kg.

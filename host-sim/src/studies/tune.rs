@@ -1,0 +1,721 @@
+//! `host-sim tune`: controller settings for one rig (docs/interfaces.md
+//! section 8, docs/control.md "Commissioning").
+//!
+//! 1. **Design model.** The controller is designed on the rig's own
+//!    parameters: the keys of the board's `model.*` settings ([`MODEL_KEYS`],
+//!    those `gap --rig-out` re-estimates and more) are copied from the rig
+//!    file; the rest of the design model stays nominal, so the board can
+//!    hold exactly what the host runs.
+//! 2. **Search.** The settings that decide the response on a given rig
+//!    ([`Knob`]: for `cmpc-eso` the acceleration limit, the compliance
+//!    feedforward's share, the observer's bandwidth and the move weight) are
+//!    searched by Nelder-Mead (argmin) on a box, the objective
+//!    ([`cost`]) a weighted sum of the paper's metrics on its four scenarios,
+//!    each relative to the starting settings on the same rig, run as the
+//!    board runs them (1 ms tick, realistic sensors, fixed noise seed: the
+//!    objective is deterministic). A run that breaks a hard limit (the servo
+//!    speed, the stroke) or does not settle (RMSE after 2 s above 1 mm, or
+//!    unstable) is infeasible.
+//! 3. **Robustness.** The best settings must also hold on rigs drawn around
+//!    the identified one ([`Robust`]: every physical parameter within
+//!    +-F, the rig's effects kept): no run infeasible. Otherwise the next best
+//!    are tried; if none holds, not even the starting settings, the tune is
+//!    refused with the reason.
+//! 4. **Output.** The settings differing from the preset, written once with
+//!    nine significant digits: the configuration file and the console script
+//!    hold the same numbers, and the "after" figures are measured with
+//!    exactly those.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+use argmin::core::{CostFunction, Error as ArgminError, Executor};
+use argmin::solver::neldermead::NelderMead;
+use dca_app::settings::{self, Settings};
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use dca_core::params::PlantParams;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::io::files::{self, PathError};
+use crate::io::plot::{self, Panel, PlotError, Series};
+use crate::model::params::{self, ParamKey};
+use crate::model::plant::{HoseModel, Plant};
+use crate::model::scenario::Scenario;
+use crate::model::sensors::SensorMode;
+use crate::sim::config::{ConfigFile, FileError, RigFile};
+use crate::sim::metrics::Metrics;
+use crate::sim::request::trace_metrics;
+use crate::sim::{run, RunSpec, Trace};
+use crate::studies::montecarlo::is_unstable;
+
+/// The design-model keys the board can hold (`model.<key>` settings).
+pub const MODEL_KEYS: [&str; 13] = [
+    "m_kg",
+    "ap1_m2",
+    "ap2_m2",
+    "aa1_m2",
+    "aa2_m2",
+    "c_visc_nspm",
+    "beta_e_pa",
+    "tau_m_s",
+    "p_acc0_pa",
+    "hose.ce0_m3pp",
+    "hose.cf0_m3pp",
+    "hose.cs0_m3pp",
+    "hose.tau_s_s",
+];
+
+/// The scenarios of the objective (docs/model.md section 8).
+pub const SCENARIOS: [&str; 4] = ["step", "stepload", "sine", "sineload"];
+
+/// Largest RMSE after 2 s of a run that settles, mm.
+pub const SETTLED_RMSE_MM: f64 = 1.0;
+
+/// Why a tune failed or was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum TuneError {
+    /// The controller cannot be tuned by this command.
+    #[error("tune supports cmpc-eso and mpc-eso, not {0}")]
+    Kind(&'static str),
+    /// No setting tried keeps the limits and stability on the rig and
+    /// around it.
+    #[error("no safe setting: {0}")]
+    Refused(String),
+    /// The written configuration does not read back.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A file could not be written.
+    #[error(transparent)]
+    Path(#[from] PathError),
+    /// A plot could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+/// The uncertainty set of the robustness check: `draws` rigs with every
+/// physical parameter drawn uniformly within +-`fraction` of the identified
+/// rig's value (seeds 0..draws).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Robust {
+    /// Rigs drawn.
+    pub draws: u64,
+    /// Half-width of the draw, a fraction.
+    pub fraction: f64,
+}
+
+/// What to tune, on which rig, how.
+#[derive(Clone, Debug)]
+pub struct TuneSetup {
+    /// The rig (parameters and effects).
+    pub rig: RigFile,
+    /// The hose model of the simulated rig.
+    pub hose: HoseModel,
+    /// The starting settings (a preset or a configuration file).
+    pub base: ControllerConfig,
+    /// The preset the output is written relative to.
+    pub preset: Preset,
+    /// Sensors of the runs (realistic by default).
+    pub sensors: SensorMode,
+    /// Noise seed of the runs.
+    pub seed: u64,
+    /// Largest number of objective evaluations of the search.
+    pub max_evals: u64,
+    /// The robustness check.
+    pub robust: Robust,
+    /// Show progress on stderr.
+    pub progress: bool,
+}
+
+/// The figures of one configuration on one rig.
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    /// Metrics per scenario of [`SCENARIOS`].
+    pub metrics: Vec<Metrics>,
+    /// Why it is infeasible (none: feasible).
+    pub infeasible: Option<String>,
+    /// The runs, for the plots.
+    pub traces: Vec<Trace>,
+}
+
+/// The result of a tune.
+#[derive(Clone, Debug)]
+pub struct Tuned {
+    /// The tuned controller configuration (as read back from its file).
+    pub config: ControllerConfig,
+    /// The configuration file's text.
+    pub config_text: String,
+    /// The console script's text.
+    pub script_text: String,
+    /// The starting settings with the nominal design model on the rig.
+    pub before: Evaluation,
+    /// The tuned settings on the rig.
+    pub after: Evaluation,
+    /// The settings changed from the preset: (path, value).
+    pub changed: Vec<(&'static str, f64)>,
+    /// Objective evaluations of the search.
+    pub evals: u64,
+    /// Candidates that failed the robustness check before one held.
+    pub rejected: usize,
+    /// Wall time, s.
+    pub elapsed_s: f64,
+}
+
+/// The settings the search moves, each on a box, in the search's units.
+#[derive(Clone, Copy, Debug)]
+pub enum Knob {
+    /// ln of `cmpc.a_max_mps2`.
+    LnAccel,
+    /// `cmpc.comp_ff`.
+    CompFf,
+    /// ln of the observer's bandwidth scale (beta_i times s^i).
+    LnObserver,
+    /// ln of the move weight (`cmpc.rw` or `mpc_eso.rw`).
+    LnRw,
+}
+
+impl Knob {
+    /// The knobs of a controller kind.
+    pub fn of(kind: ControllerKind) -> Result<&'static [Knob], TuneError> {
+        match kind {
+            ControllerKind::CmpcEso => {
+                Ok(&[Self::LnAccel, Self::CompFf, Self::LnObserver, Self::LnRw])
+            }
+            ControllerKind::MpcEso => Ok(&[Self::LnObserver, Self::LnRw]),
+            k => Err(TuneError::Kind(k.name())),
+        }
+    }
+
+    /// The box, relative to the start where the knob is a logarithm.
+    fn bounds(self) -> (f64, f64) {
+        match self {
+            Self::LnAccel => (0.25f64.ln(), 3.0f64.ln()),
+            Self::CompFf => (0.0, 1.0),
+            Self::LnObserver => (0.5f64.ln(), 2.0f64.ln()),
+            Self::LnRw => (0.1f64.ln(), 10.0f64.ln()),
+        }
+    }
+
+    /// The first simplex step.
+    fn step(self) -> f64 {
+        match self {
+            Self::LnAccel => 0.4,
+            Self::CompFf => 0.25,
+            Self::LnObserver => 0.3,
+            Self::LnRw => 0.8,
+        }
+    }
+
+    /// Its value in `base` (0 for the relative logarithms).
+    fn start(self, base: &ControllerConfig) -> f64 {
+        match self {
+            Self::CompFf => base.cmpc.comp_ff,
+            _ => 0.0,
+        }
+    }
+
+    /// Set it to `x` (clamped into its box) in `cfg`, relative to `base`.
+    fn apply(self, x: f64, base: &ControllerConfig, cfg: &mut ControllerConfig) {
+        let (lo, hi) = self.bounds();
+        let x = x.clamp(lo, hi);
+        match self {
+            Self::LnAccel => cfg.cmpc.a_max_mps2 = base.cmpc.a_max_mps2 * x.exp(),
+            Self::CompFf => cfg.cmpc.comp_ff = x,
+            Self::LnObserver => {
+                let s = x.exp();
+                cfg.eso.beta1 = base.eso.beta1 * s;
+                cfg.eso.beta2 = base.eso.beta2 * s * s;
+                cfg.eso.beta3 = base.eso.beta3 * s * s * s;
+            }
+            Self::LnRw if cfg.kind == ControllerKind::CmpcEso => {
+                cfg.cmpc.rw = base.cmpc.rw * x.exp();
+            }
+            Self::LnRw => cfg.mpc_eso.rw = base.mpc_eso.rw * x.exp(),
+        }
+    }
+
+    /// How far `x` lies outside the box.
+    fn excess(self, x: f64) -> f64 {
+        let (lo, hi) = self.bounds();
+        (lo - x).max(0.0) + (x - hi).max(0.0)
+    }
+}
+
+/// The preset a `--config` argument starts from: the preset it names, or
+/// the `preset` of the configuration file it names (`paper` without one).
+pub fn preset_of(config: Option<&str>) -> Result<Preset, FileError> {
+    let Some(config) = config else {
+        return Ok(Preset::Paper);
+    };
+    if let Some(p) = Preset::from_name(config) {
+        return Ok(p);
+    }
+    ConfigFile::read(Path::new(config))?.preset(config)
+}
+
+/// The design model for `rig`: nominal, with the [`MODEL_KEYS`] of the rig.
+pub fn design_model(rig: &PlantParams) -> PlantParams {
+    let mut p = PlantParams::NOMINAL;
+    for k in MODEL_KEYS.iter().filter_map(|n| params::find(n)) {
+        k.set(&mut p, k.get(rig));
+    }
+    p
+}
+
+/// The rig's keys that differ from nominal but that the design model does
+/// not carry (no `model.*` setting on the board).
+pub fn keys_left_out(rig: &PlantParams) -> Vec<&'static str> {
+    params::KEYS
+        .iter()
+        .filter(|k| !MODEL_KEYS.contains(&k.name))
+        .filter(|k| k.get(rig).to_bits() != k.get(&PlantParams::NOMINAL).to_bits())
+        .map(|k| k.name)
+        .collect()
+}
+
+/// Run `cfg` on the rig `params` (with `setup`'s effects, hose, sensors and
+/// seed) through every scenario of [`SCENARIOS`], on every core.
+pub fn evaluate(setup: &TuneSetup, params: &PlantParams, cfg: &ControllerConfig) -> Evaluation {
+    let runs: Vec<Result<(Trace, Metrics), String>> = SCENARIOS
+        .par_iter()
+        .map(|name| {
+            let scenario = Scenario::by_name(name).expect("a nominal scenario");
+            let spec = RunSpec {
+                scenario: scenario.clone(),
+                controller: *cfg,
+                plant: Plant::new(*params, setup.hose),
+                effects: setup.rig.effects,
+                sensors: setup.sensors,
+                seed: setup.seed,
+                dt_s: if setup.hose.is_grnn() { 2.0e-4 } else { 1.0e-4 },
+            };
+            let trace = run(&spec).map_err(|e| format!("{name}: {e}"))?;
+            let m = trace_metrics(&trace, &scenario);
+            Ok((trace, m))
+        })
+        .collect();
+    let mut ev = Evaluation {
+        metrics: Vec::new(),
+        infeasible: None,
+        traces: Vec::new(),
+    };
+    for (name, r) in SCENARIOS.iter().zip(runs) {
+        match r {
+            Ok((trace, m)) => {
+                if ev.infeasible.is_none() {
+                    ev.infeasible = infeasible(name, &trace, &m, params, cfg);
+                }
+                ev.metrics.push(m);
+                ev.traces.push(trace);
+            }
+            Err(e) => {
+                ev.infeasible.get_or_insert(e);
+                ev.metrics.push(Metrics::default());
+            }
+        }
+    }
+    ev
+}
+
+/// Why a run is not acceptable: unstable, not settled, or beyond a hard
+/// limit (the commanded speed beyond the servo's, a piston beyond the stroke).
+fn infeasible(
+    name: &str,
+    trace: &Trace,
+    m: &Metrics,
+    rig: &PlantParams,
+    cfg: &ControllerConfig,
+) -> Option<String> {
+    if is_unstable(m) {
+        return Some(format!("{name}: unstable"));
+    }
+    if let Some(r) = m.rmse_after_2_mm.filter(|r| *r > SETTLED_RMSE_MM) {
+        return Some(format!(
+            "{name}: RMSE after 2 s {r:.2} mm > {SETTLED_RMSE_MM} mm"
+        ));
+    }
+    let v_max = f64::from(cfg.limits.v_max_mps) * (1.0 + 1e-6);
+    if let Some(r) = trace.rows.iter().find(|r| r.vcmd_mps.abs() > v_max) {
+        return Some(format!(
+            "{name}: speed command {:.4} m/s beyond {v_max:.4} m/s at {:.3} s",
+            r.vcmd_mps, r.t_s
+        ));
+    }
+    let inside = |x: f64| x >= rig.x_min_m - 1e-4 && x <= rig.x_max_m + 1e-4;
+    if let Some(r) = trace
+        .rows
+        .iter()
+        .find(|r| !inside(r.truth.xi_m) || !inside(r.truth.xo_m))
+    {
+        return Some(format!(
+            "{name}: a piston leaves the stroke at {:.3} s",
+            r.t_s
+        ));
+    }
+    None
+}
+
+/// The figures the objective weighs, in [`SCENARIOS`] order of use: rise
+/// (step), 800 N deviation and RMSE after 4 s (stepload), RMSE after 2 s
+/// (sine), RMSE after 4 s (sineload).
+fn figures(e: &Evaluation) -> [f64; 5] {
+    let g = |v: Option<f64>| v.unwrap_or(f64::INFINITY);
+    let m = &e.metrics;
+    [
+        g(m[0].rise_time_s),
+        m[1].load.first().map_or(f64::INFINITY, |l| l.deviation_mm),
+        g(m[1].rmse_after_4_mm),
+        g(m[2].rmse_after_2_mm),
+        g(m[3].rmse_after_4_mm),
+    ]
+}
+
+/// Weights of [`figures`] in the objective: the 800 N deviation first.
+const WEIGHTS: [f64; 5] = [0.15, 0.4, 0.15, 0.15, 0.15];
+
+/// Overshoot allowed before it costs, %.
+const FREE_OVERSHOOT_PCT: f64 = 1.0;
+
+/// The objective: the weighted figures relative to `reference`'s, plus
+/// 0.2 per % of overshoot beyond the larger of 1 % and the reference's;
+/// 1e3 plus that for an infeasible evaluation.
+pub fn cost(e: &Evaluation, reference: &Evaluation) -> f64 {
+    let (f, r) = (figures(e), figures(reference));
+    let mut c: f64 = WEIGHTS
+        .iter()
+        .zip(f.iter().zip(r))
+        .map(|(w, (a, b))| w * a / b)
+        .sum();
+    let os = e.metrics[0].overshoot_pct.unwrap_or(0.0);
+    let free = reference.metrics[0]
+        .overshoot_pct
+        .unwrap_or(0.0)
+        .max(FREE_OVERSHOOT_PCT);
+    c += 0.2 * (os - free).max(0.0);
+    if !c.is_finite() {
+        c = 1e3;
+    }
+    if e.infeasible.is_some() {
+        c += 1e3;
+    }
+    c
+}
+
+/// The objective as argmin sees it.
+struct Objective<'a> {
+    setup: &'a TuneSetup,
+    knobs: &'static [Knob],
+    start: ControllerConfig,
+    reference: &'a Evaluation,
+    tried: &'a std::sync::Mutex<Vec<(f64, Vec<f64>)>>,
+    bar: &'a ProgressBar,
+}
+
+/// `start` with the knobs set to `x`.
+fn knob_config(knobs: &[Knob], start: &ControllerConfig, x: &[f64]) -> ControllerConfig {
+    let mut cfg = *start;
+    for (k, v) in knobs.iter().zip(x) {
+        k.apply(*v, start, &mut cfg);
+    }
+    cfg
+}
+
+impl CostFunction for Objective<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
+        let cfg = knob_config(self.knobs, &self.start, x);
+        let out: f64 = self.knobs.iter().zip(x).map(|(k, v)| k.excess(*v)).sum();
+        let c = if dca_core::controller::Controller::new(&cfg).is_err() {
+            2e3
+        } else {
+            cost(
+                &evaluate(self.setup, &self.setup.rig.params, &cfg),
+                self.reference,
+            )
+        } + 10.0 * out;
+        self.tried
+            .lock()
+            .expect("not poisoned")
+            .push((c, x.clone()));
+        self.bar.inc(1);
+        Ok(c)
+    }
+}
+
+/// Whether `cfg` holds on the rigs around the identified one; the first
+/// failure otherwise.
+pub fn robust_check(setup: &TuneSetup, cfg: &ControllerConfig) -> Result<(), String> {
+    let spread = params::Spread::Uniform {
+        half_width: setup.robust.fraction,
+    };
+    let keys: Vec<(&'static ParamKey, params::Spread)> = params::physical_keys()
+        .into_iter()
+        .map(|k| (k, spread))
+        .collect();
+    for seed in 0..setup.robust.draws {
+        let (p, _) = params::draw(&setup.rig.params, &keys, seed);
+        if params::check(&p).is_err() {
+            continue;
+        }
+        if let Some(why) = evaluate(setup, &p, cfg).infeasible {
+            return Err(format!(
+                "rig drawn within +-{} (seed {seed}): {why}",
+                setup.robust.fraction
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Tune: search, check robustness, write the settings once, measure them.
+pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
+    let t0 = Instant::now();
+    let knobs = Knob::of(setup.base.kind)?;
+    let before = evaluate(setup, &setup.rig.params, &setup.base);
+    let mut start = setup.base;
+    start.plant = design_model(&setup.rig.params);
+    let bar = progress_bar(setup);
+    let tried = std::sync::Mutex::new(Vec::new());
+    let objective = Objective {
+        setup,
+        knobs,
+        start,
+        reference: &before,
+        tried: &tried,
+        bar: &bar,
+    };
+    let x0: Vec<f64> = knobs.iter().map(|k| k.start(&setup.base)).collect();
+    let mut simplex = vec![x0.clone()];
+    for (i, k) in knobs.iter().enumerate() {
+        let mut x = x0.clone();
+        let (lo, hi) = k.bounds();
+        x[i] = if x[i] + k.step() <= hi {
+            x[i] + k.step()
+        } else {
+            (x[i] - k.step()).max(lo)
+        };
+        simplex.push(x);
+    }
+    let solver = NelderMead::new(simplex)
+        .with_sd_tolerance(1e-4)
+        .expect("a positive tolerance");
+    let iters = setup.max_evals / 2;
+    Executor::new(objective, solver)
+        .configure(|s| s.max_iters(iters))
+        .run()
+        .map_err(|e| TuneError::Refused(format!("the search failed: {e}")))?;
+    let mut tried = tried.into_inner().expect("not poisoned");
+    let evals = tried.len() as u64;
+    tried.sort_by(|a, b| a.0.total_cmp(&b.0));
+    tried.dedup_by(|a, b| a.1 == b.1);
+    // Candidates: the best few feasible points, then the starting settings
+    // on the identified design model.
+    let mut candidates: Vec<ControllerConfig> = tried
+        .iter()
+        .filter(|(c, _)| *c < 1e3)
+        .take(5)
+        .map(|(_, x)| knob_config(knobs, &start, x))
+        .collect();
+    candidates.push(start);
+    bar.set_message("robustness check");
+    let mut last_reason = String::new();
+    for (rejected, cfg) in candidates.iter().enumerate() {
+        let (text, changed) = config_text(setup, cfg, source);
+        let written = ConfigFile::parse_str(&text, "the tuned configuration")?
+            .resolve(setup.base.kind, "the tuned configuration")?;
+        let mut written = written;
+        written.base_dt_s = setup.base.base_dt_s;
+        let after = evaluate(setup, &setup.rig.params, &written);
+        if let Some(why) = &after.infeasible {
+            last_reason = format!("on the rig itself: {why}");
+            continue;
+        }
+        match robust_check(setup, &written) {
+            Ok(()) => {
+                bar.finish_and_clear();
+                return Ok(Tuned {
+                    config: written,
+                    script_text: script_text(setup, &changed, source),
+                    config_text: text,
+                    before,
+                    after,
+                    changed,
+                    evals,
+                    rejected,
+                    elapsed_s: t0.elapsed().as_secs_f64(),
+                });
+            }
+            Err(why) => last_reason = why,
+        }
+    }
+    bar.finish_and_clear();
+    Err(TuneError::Refused(format!(
+        "{} candidate settings tried, the last failed: {last_reason}",
+        candidates.len()
+    )))
+}
+
+fn progress_bar(setup: &TuneSetup) -> ProgressBar {
+    if !setup.progress {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(setup.max_evals);
+    bar.set_style(
+        ProgressStyle::with_template("[{elapsed_precise}] {bar:30} {pos}/{len} evaluations {msg}")
+            .expect("a valid template"),
+    );
+    bar
+}
+
+/// `v` with nine significant digits, as written and read back.
+fn rounded(v: f64) -> f64 {
+    format!("{v:.8e}").parse().unwrap_or(v)
+}
+
+/// The controller settings of `cfg` that differ from `preset`'s, rounded:
+/// (path, value) in the settings table's order (`model.*` included).
+fn changed_settings(cfg: &ControllerConfig, preset: Preset) -> Vec<(&'static str, f64)> {
+    let reference = Settings {
+        controller: ControllerConfig::preset(preset, cfg.kind),
+        ..Settings::default()
+    };
+    let tuned = Settings {
+        controller: *cfg,
+        ..Settings::default()
+    };
+    settings::PARAMS
+        .iter()
+        .filter(|p| p.is_controller())
+        .filter(|p| p.get(&tuned).to_bits() != p.get(&reference).to_bits())
+        .map(|p| (p.name, rounded(p.get(&tuned))))
+        .collect()
+}
+
+/// The configuration file (settings schema) of `cfg` and the settings it
+/// changes from the preset.
+fn config_text(
+    setup: &TuneSetup,
+    cfg: &ControllerConfig,
+    source: &str,
+) -> (String, Vec<(&'static str, f64)>) {
+    let changed = changed_settings(cfg, setup.preset);
+    let mut s = format!(
+        "# Tuned by `host-sim tune` for {source}.\n\
+         # Use it with --config (run, sweep, hil, paper); the console script with the same\n\
+         # numbers puts it on a board.\n\
+         preset = \"{}\"\ncontroller = \"{}\"\n",
+        setup.preset.name(),
+        cfg.kind.name()
+    );
+    let mut table = "";
+    for (path, v) in &changed {
+        let (t, key) = path.split_once('.').expect("table.key");
+        let (t, key) = match key.split_once('.') {
+            Some((sub, k)) => (&path[..t.len() + 1 + sub.len()], k),
+            None => (t, key),
+        };
+        if t != table {
+            let _ = write!(s, "\n[{t}]\n");
+            table = t;
+        }
+        let _ = writeln!(s, "{key} = {v:e}");
+    }
+    (s, changed)
+}
+
+/// The console script: the law, the preset, one `set` per changed setting,
+/// `store`.
+fn script_text(setup: &TuneSetup, changed: &[(&'static str, f64)], source: &str) -> String {
+    let mut s = format!(
+        "# Console script written by `host-sim tune` for {source}:\n\
+         # `host-sim console --port DEV --script FILE` puts the tuned settings on the\n\
+         # board and stores them in flash (the board must be idle).\n\
+         controller {}\npreset {}\n",
+        setup.base.kind.name(),
+        setup.preset.name()
+    );
+    for (path, v) in changed {
+        let _ = writeln!(s, "set {path} {v:e}");
+    }
+    s + "store\n"
+}
+
+/// One row of the before/after table: label, unit, before, after.
+pub fn table_rows(t: &Tuned) -> Vec<(&'static str, &'static str, f64, f64)> {
+    let (b, a) = (figures(&t.before), figures(&t.after));
+    let os = |e: &Evaluation| e.metrics[0].overshoot_pct.unwrap_or(f64::NAN);
+    vec![
+        ("step: rise 10-90 %", "s", b[0], a[0]),
+        ("step: overshoot", "%", os(&t.before), os(&t.after)),
+        ("stepload: deviation at the 800 N step", "mm", b[1], a[1]),
+        ("stepload: RMSE t >= 4 s", "mm", b[2], a[2]),
+        ("sine: RMSE t >= 2 s", "mm", b[3], a[3]),
+        ("sineload: RMSE t >= 4 s", "mm", b[4], a[4]),
+    ]
+}
+
+/// Write the report into `dir`: `report.md` with the before/after table
+/// and the settings, `tune.png` with the step, the load step and the sine.
+pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::PathBuf, TuneError> {
+    files::create_dir_all(dir)?;
+    let mut md = format!(
+        "# DCA: tuned settings\n\nRig: {source}. Before: the starting settings with the nominal \
+         design model; after: the tuned settings (design model and controller), both on the rig, \
+         realistic sensors, 1 ms tick. {} objective evaluations, {} candidates refused by the \
+         robustness check, {:.1} s.\n\n| figure | before | after |\n|---|---:|---:|\n",
+        t.evals, t.rejected, t.elapsed_s
+    );
+    for (label, unit, b, a) in table_rows(t) {
+        let _ = writeln!(md, "| {label} | {b:.4} {unit} | {a:.4} {unit} |");
+    }
+    md += "\nSettings changed from the preset:\n\n| path | value |\n|---|---:|\n";
+    for (p, v) in &t.changed {
+        let _ = writeln!(md, "| `{p}` | {v:e} |");
+    }
+    md += "\n![before and after](tune.png)\n";
+    let panel = |i: usize, title: &str, t0: f64, t1: f64| {
+        let window = |tr: &Trace| -> Vec<(f64, f64)> {
+            tr.rows
+                .iter()
+                .filter(|r| r.t_s >= t0 && r.t_s <= t1)
+                .map(|r| (r.t_s, 1e3 * r.meas.xo_m))
+                .collect()
+        };
+        let reference: Vec<(f64, f64)> = t.after.traces[i]
+            .rows
+            .iter()
+            .filter(|r| r.t_s >= t0 && r.t_s <= t1)
+            .map(|r| (r.t_s, 1e3 * r.ref_m))
+            .collect();
+        Panel::new(title, "time t [s]", "position Xo [mm]")
+            .with(Series::dashed("reference", reference))
+            .with(Series::line("before", window(&t.before.traces[i])))
+            .with(Series::line("after (tuned)", window(&t.after.traces[i])))
+    };
+    let error = |tr: &Trace| -> Vec<(f64, f64)> {
+        tr.rows
+            .iter()
+            .filter(|r| r.t_s >= 2.0)
+            .map(|r| (r.t_s, 1e3 * (r.ref_m - r.meas.xo_m)))
+            .collect()
+    };
+    let sine = Panel::new(
+        "sine: tracking error",
+        "time t [s]",
+        "error e = ref - Xo [mm]",
+    )
+    .with(Series::line("before", error(&t.before.traces[2])))
+    .with(Series::line("after (tuned)", error(&t.after.traces[2])));
+    let panels = [
+        panel(0, "step", 0.0, 2.0),
+        panel(1, "stepload: the 800 N step at 4 s", 3.9, 4.6),
+        sine,
+    ];
+    plot::save(&dir.join("tune.png"), &panels, 900, 260)?;
+    let path = dir.join("report.md");
+    files::write(&path, md)?;
+    Ok(path)
+}

@@ -1,0 +1,89 @@
+//! `host-sim tune` (docs/interfaces.md section 8): the tuned settings are
+//! written once and read back as they were measured, the search never
+//! returns worse than where it started, the console script holds the same
+//! numbers, and a rig on which nothing is safe is refused with the reason.
+
+use dca_app::settings::Settings;
+use dca_core::controller::{ControllerConfig, ControllerKind, Preset};
+use dca_core::params::PlantParams;
+use host_sim::model::effects::Effects;
+use host_sim::model::plant::HoseModel;
+use host_sim::model::sensors::SensorMode;
+use host_sim::sim::config::{ConfigFile, RigFile};
+use host_sim::studies::tune::{cost, tune, Robust, TuneError, TuneSetup};
+
+fn setup(params: PlantParams, evals: u64) -> TuneSetup {
+    let mut base = ControllerConfig::preset(Preset::Limit, ControllerKind::CmpcEso);
+    base.base_dt_s = 1e-3;
+    TuneSetup {
+        rig: RigFile {
+            params,
+            effects: Effects::default(),
+        },
+        hose: HoseModel::Nonlinear,
+        base,
+        preset: Preset::Limit,
+        sensors: SensorMode::Realistic,
+        seed: 0,
+        max_evals: evals,
+        robust: Robust {
+            draws: 1,
+            fraction: 0.05,
+        },
+        progress: false,
+    }
+}
+
+#[test]
+fn tuned_settings_read_back_and_beat_the_start() {
+    // A heavier load than nominal: the design model follows the rig.
+    let mut rig = PlantParams::NOMINAL;
+    rig.m_kg = 60.0;
+    let s = setup(rig, 8);
+    let t = tune(&s, "test rig").unwrap();
+    // The file is the configuration measured.
+    let mut back = ConfigFile::parse_str(&t.config_text, "tuned.toml")
+        .unwrap()
+        .resolve(ControllerKind::CmpcEso, "tuned.toml")
+        .unwrap();
+    back.base_dt_s = 1e-3;
+    assert_eq!(back, t.config);
+    assert_eq!(t.config.plant.m_kg, 60.0, "the design model is the rig's");
+    // The script sets the same values, in order, then stores.
+    let sets: Vec<&str> = t
+        .script_text
+        .lines()
+        .filter(|l| l.starts_with("set "))
+        .collect();
+    assert_eq!(sets.len(), t.changed.len());
+    let mut board = Settings::preset(Preset::Limit, ControllerKind::CmpcEso);
+    for line in &sets {
+        let mut w = line.split_whitespace().skip(1);
+        let (path, v) = (w.next().unwrap(), w.next().unwrap());
+        board = board.with(path, v.parse().unwrap()).unwrap().0;
+    }
+    board.controller.base_dt_s = 1e-3;
+    assert_eq!(
+        board.controller, t.config,
+        "the board holds what the host ran"
+    );
+    assert_eq!(t.script_text.lines().last(), Some("store"));
+    // Never worse than the start (the nominal design on this rig).
+    assert!(t.after.infeasible.is_none());
+    let (before, after) = (cost(&t.before, &t.before), cost(&t.after, &t.before));
+    assert!(after <= before, "{after} > {before}");
+}
+
+#[test]
+fn a_rig_with_no_safe_setting_is_refused() {
+    // The rig's stroke ends at 30 mm: the paper's 50 mm step cannot be
+    // reached whatever the settings (the error never settles).
+    let mut rig = PlantParams::NOMINAL;
+    rig.x_max_m = 0.03;
+    match tune(&setup(rig, 4), "short rig") {
+        Err(TuneError::Refused(why)) => {
+            assert!(why.contains("on the rig itself: step"), "{why}")
+        }
+        other => panic!("expected a refusal, got {:?}", other.map(|t| t.changed)),
+    }
+}
