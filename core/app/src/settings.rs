@@ -391,20 +391,21 @@ params! {
     ("sup.stroke_max_m", -1.0, 1.0, F32, limits.stroke_m[1]),
     ("hil.timeout_ms", 0.0, 60000.0, Int, hil_timeout_ms),
     // The design model: the rig's parameters the controllers are designed
-    // on (nominal by default; `host-sim tune` sets the identified rig's).
-    ("model.m_kg", 0.1, 1000.0, F64, controller.plant.m_kg),
+    // on (nominal by default; `host-sim tune` sets the identified rig's),
+    // with the simulator's plausible ranges (host_sim::model::params).
+    ("model.m_kg", 1e-3, 1e4, F64, controller.plant.m_kg),
     ("model.ap1_m2", 1e-6, 1e-2, F64, controller.plant.ap1_m2),
     ("model.ap2_m2", 1e-6, 1e-2, F64, controller.plant.ap2_m2),
     ("model.aa1_m2", 1e-6, 1e-2, F64, controller.plant.aa1_m2),
     ("model.aa2_m2", 1e-6, 1e-2, F64, controller.plant.aa2_m2),
     ("model.c_visc_nspm", 0.0, 1e6, F64, controller.plant.c_visc_nspm),
-    ("model.beta_e_pa", 1e7, 1e11, F64, controller.plant.beta_e_pa),
+    ("model.beta_e_pa", 1e7, 1e10, F64, controller.plant.beta_e_pa),
     ("model.tau_m_s", 1e-4, 1.0, F64, controller.plant.tau_m_s),
-    ("model.p_acc0_pa", 0.0, 1e8, F64, controller.plant.p_acc0_pa),
-    ("model.hose.ce0_m3pp", 1e-18, 1e-8, F64, controller.plant.hose.ce0_m3pp),
-    ("model.hose.cf0_m3pp", 1e-18, 1e-8, F64, controller.plant.hose.cf0_m3pp),
-    ("model.hose.cs0_m3pp", 1e-18, 1e-8, F64, controller.plant.hose.cs0_m3pp),
-    ("model.hose.tau_s_s", 1e-4, 100.0, F64, controller.plant.hose.tau_s_s),
+    ("model.p_acc0_pa", -1e5, 1e8, F64, controller.plant.p_acc0_pa),
+    ("model.hose.ce0_m3pp", 1e-18, 1e-9, F64, controller.plant.hose.ce0_m3pp),
+    ("model.hose.cf0_m3pp", 1e-18, 1e-9, F64, controller.plant.hose.cf0_m3pp),
+    ("model.hose.cs0_m3pp", 1e-18, 1e-9, F64, controller.plant.hose.cs0_m3pp),
+    ("model.hose.tau_s_s", 1e-5, 100.0, F64, controller.plant.hose.tau_s_s),
 }
 
 /// The tables of [`PARAMS`] whose values are fields of [`ControllerConfig`]
