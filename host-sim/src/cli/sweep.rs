@@ -8,7 +8,7 @@ use host_sim::sim::batch::{sweep_with, write_csv, BatchOptions, Perturb, Retune,
 use host_sim::sim::request::resolve;
 use host_sim::sim::tolerance::read_spec;
 use host_sim::studies::commission::{commission, Commissioning};
-use host_sim::studies::montecarlo::{outcome, write_report};
+use host_sim::studies::montecarlo::{outcome, quantile, write_report};
 use host_sim::studies::tune::{self, Robust};
 
 use super::args::{RunOpts, CONTROL_TICK_HELP};
@@ -56,6 +56,11 @@ pub struct Args {
     /// DIR/commission-<index>/: identification logs, identified rig, tuned settings).
     #[arg(long, value_name = "DIR")]
     logs: Option<PathBuf>,
+    /// Also run each rig's floor (docs/control.md's floor.toml on the same
+    /// drawn rig, ideal sensors) and write `floor_mm` and `excess_mm` (the
+    /// first load deviation minus the floor) columns.
+    #[arg(long)]
+    floor: bool,
     /// Write a Markdown report with histograms of the metrics to DIR/report.md.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
@@ -120,6 +125,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         perturb,
         logs: a.logs.clone(),
         progress: true,
+        floor: a.floor,
     };
     let rows = sweep_with(&base, &params, &seeds, &opts)?;
     write_csv(&rows, &a.out)?;
@@ -132,6 +138,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rayon::current_num_threads(),
         a.out.display()
     );
+    if a.floor {
+        eprintln!("{}", floor_summary(&rows));
+    }
     if let Some(dir) = &a.report {
         let o = outcome(&rows);
         let path = write_report(&rows, dir, "DCA: sweep report", &setup)?;
@@ -178,6 +187,32 @@ fn retune(
         );
         Ok((done.config, columns))
     })))
+}
+
+/// The floor and the excess over it: median, 95th percentile, largest.
+fn floor_summary(rows: &[host_sim::sim::batch::BatchRow]) -> String {
+    let stats = |mut v: Vec<f64>| {
+        v.retain(|x| x.is_finite());
+        v.sort_by(f64::total_cmp);
+        let q = |p| quantile(&v, p).map_or("-".into(), |x| format!("{x:.3}"));
+        format!(
+            "median {}, 95th percentile {}, max {} mm ({} runs)",
+            q(0.5),
+            q(0.95),
+            q(1.0),
+            v.len()
+        )
+    };
+    let floors = rows
+        .iter()
+        .filter_map(|r| r.floor_mm.as_ref()?.as_ref().ok().copied())
+        .collect();
+    let excess = rows.iter().filter_map(|r| r.excess_mm()).collect();
+    format!(
+        "floor: {}\nexcess over the floor: {}",
+        stats(floors),
+        stats(excess)
+    )
 }
 
 /// What the sweep ran, for the report (Markdown).

@@ -14,6 +14,13 @@
 //! controller keeps its design model, so each run tests robustness to a rig
 //! that is not the model. The drawn values are `plant.<key>` columns of the
 //! CSV and metadata lines of the run logs (`--logs DIR`).
+//!
+//! The floor of each rig ([`BatchOptions::floor`], `sweep --floor`): the
+//! same drawn rig (same seed, hose and effects), ideal sensors, driven open
+//! loop by [`floor_scenario`], the servo at full speed from the instant of
+//! the 800 N step; the dip of Xo below its level at that instant is the
+//! least 800 N deviation any controller within the servo's speed reaches
+//! on that rig (docs/control.md, "The floor of the load deviation").
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -30,6 +37,8 @@ use crate::io::num::Num;
 use crate::io::runlog::LogError;
 use crate::model::params::{self, ParamKey, ParamsError, Spread};
 use crate::model::plant::Plant;
+use crate::model::scenario::{Command, Piecewise, Scenario, Signal};
+use crate::model::sensors::SensorMode;
 use crate::sim::config::{check_value, controller_param, set_param, ParamError};
 use crate::sim::metrics::Metrics;
 use crate::sim::request::{log_meta_with, resolve, trace_metrics, RequestError, RunRequest};
@@ -203,6 +212,9 @@ pub struct BatchOptions {
     pub logs: Option<PathBuf>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Also run each rig's floor ([`floor_scenario`]): `floor_mm` and
+    /// `excess_mm` columns.
+    pub floor: bool,
 }
 
 /// One swept parameter: a configuration path and its values.
@@ -265,6 +277,67 @@ pub struct BatchRow {
     pub result: Result<Metrics, SweepError>,
     /// What commissioning set (`tuned.<name>`, value; empty without it).
     pub tuned: Vec<(String, String)>,
+    /// The floor of this rig's 800 N deviation, mm ([`floor_mm`]; `None`
+    /// unless asked for).
+    pub floor_mm: Option<Result<f64, SweepError>>,
+}
+
+impl BatchRow {
+    /// The first load window's deviation minus this rig's floor, mm (both
+    /// must exist).
+    pub fn excess_mm(&self) -> Option<f64> {
+        let dev = self.result.as_ref().ok()?.load.first()?.deviation_mm;
+        Some(dev - *self.floor_mm.as_ref()?.as_ref().ok()?)
+    }
+}
+
+/// Instant of the floor run's load step, s (stepload's 800 N step).
+const FLOOR_STEP_S: f64 = 4.0;
+
+/// docs/control.md's `floor.toml`: the servo at 0.1 m/s from 0.5 s to
+/// 0.9167 s (Xo to about 50 mm), then at full speed (0.1 m/s, for 30 ms)
+/// from the instant of the 800 N step at 4 s; 4.3 s long.
+pub fn floor_scenario() -> Scenario {
+    let steps = |t: Vec<f64>, v: &[f64]| {
+        Signal::Piecewise(Piecewise::constants(t, v).expect("valid by construction"))
+    };
+    Scenario::new(
+        "floor",
+        4.3,
+        Command::OpenLoop(steps(
+            vec![0.5, 0.9167, FLOOR_STEP_S, FLOOR_STEP_S + 0.03],
+            &[0.0, 0.1, 0.0, 0.1, 0.0],
+        )),
+        steps(vec![FLOOR_STEP_S], &[0.0, 800.0]),
+    )
+}
+
+/// The floor of the 800 N deviation on the rig of `base` (or `rig`), mm:
+/// the true Xo's dip below its level at the step in [`floor_scenario`],
+/// ideal sensors, the base's hose, effects and plant step.
+pub fn floor_mm(
+    base: &RunRequest,
+    seed: u64,
+    rig: Option<&dca_core::params::PlantParams>,
+) -> Result<f64, SweepError> {
+    let mut spec = resolve(&RunRequest {
+        seed: Some(seed),
+        ..base.clone()
+    })?;
+    if let Some(p) = rig {
+        params::check(p).map_err(SweepError::Draw)?;
+        spec.plant = Plant::new(*p, spec.plant.hose_model());
+    }
+    spec.scenario = floor_scenario();
+    spec.sensors = SensorMode::Ideal;
+    let trace = run(&spec)?;
+    let after = trace
+        .rows
+        .iter()
+        .skip_while(|r| r.t_s < FLOOR_STEP_S - 1e-9)
+        .map(|r| r.truth.xo_m);
+    let at_step = after.clone().next().unwrap_or(f64::NAN);
+    Ok((at_step - after.fold(f64::INFINITY, f64::min)) * 1e3)
 }
 
 /// Run every combination of `params` and `seeds` on `base` (in parallel).
@@ -392,6 +465,9 @@ pub fn sweep_with(
                 opts.retune.as_ref(),
                 &mut tuned,
             );
+            let floor_mm = opts
+                .floor
+                .then(|| floor_mm(base, seed, rig.as_ref().map(|r| &r.0)));
             bar.inc(1);
             BatchRow {
                 index,
@@ -400,6 +476,7 @@ pub fn sweep_with(
                 seed,
                 result,
                 tuned,
+                floor_mm,
             }
         })
         .collect();
@@ -447,6 +524,10 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
         ]
         .map(String::from),
     );
+    let floor = rows.first().is_some_and(|r| r.floor_mm.is_some());
+    if floor {
+        header.extend(["floor_mm", "excess_mm"].map(String::from));
+    }
     let _ = writeln!(s, "{}", header.join(","));
     for r in rows {
         let mut f: Vec<String> = r.params.iter().map(|p| format!("{}", p.1)).collect();
@@ -478,6 +559,10 @@ pub fn write_csv(rows: &[BatchRow], path: &Path) -> Result<(), PathError> {
                 f.extend(std::iter::repeat_n(String::new(), 8));
                 f.push(format!("\"{}\"", e.to_string().replace('"', "'")));
             }
+        }
+        if floor {
+            let fl = r.floor_mm.as_ref().and_then(|f| f.as_ref().ok().copied());
+            f.extend([opt(fl), opt(r.excess_mm())]);
         }
         let _ = writeln!(s, "{}", f.join(","));
     }
@@ -547,6 +632,48 @@ mod tests {
                 .unwrap()
         };
         assert!(rise(33.0) > rise(10.0), "{} vs {}", rise(33.0), rise(10.0));
+    }
+
+    /// The floor of the nominal rig is docs/control.md's 1.09 mm; on drawn
+    /// rigs it follows the draw; the CSV carries it and the excess.
+    #[test]
+    fn floor_per_rig_and_excess_columns() {
+        let base = RunRequest {
+            scenario: "stepload".into(),
+            controller: Some("mpc-eso".into()),
+            sensors: Some("realistic".into()),
+            ..RunRequest::default()
+        };
+        let nominal = floor_mm(&base, 0, None).unwrap();
+        assert!((nominal - 1.092).abs() < 0.005, "{nominal} mm");
+        let opts = BatchOptions {
+            perturb: Some(Perturb::new(0.3, None).unwrap()),
+            floor: true,
+            ..BatchOptions::default()
+        };
+        let rows = sweep_with(&base, &[], &[0, 1], &opts).unwrap();
+        let floors: Vec<f64> = rows
+            .iter()
+            .map(|r| *r.floor_mm.as_ref().unwrap().as_ref().unwrap())
+            .collect();
+        assert!(floors.iter().all(|f| (0.3..5.0).contains(f)), "{floors:?}");
+        assert!((floors[0] - floors[1]).abs() > 1e-3, "{floors:?}");
+        for (r, f) in rows.iter().zip(&floors) {
+            let dev = r.result.as_ref().unwrap().load[0].deviation_mm;
+            assert_eq!(r.excess_mm(), Some(dev - f));
+            assert!(dev > *f, "run {}: {dev} mm below the floor {f} mm", r.index);
+        }
+        let csv = std::env::temp_dir().join(format!("dca-floor-{}.csv", std::process::id()));
+        write_csv(&rows, &csv).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        std::fs::remove_file(&csv).ok();
+        assert!(text
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",error,floor_mm,excess_mm"));
+        let last = text.lines().nth(1).unwrap().rsplit(',').next().unwrap();
+        assert_eq!(last, format!("{:.6}", rows[0].excess_mm().unwrap()));
     }
 
     /// A small Monte Carlo: 4 draws at F = 0.1 on stepload, every run
