@@ -16,8 +16,9 @@
 //!    objective is deterministic). A run that breaks a hard limit (the servo
 //!    speed, the stroke) or does not settle (RMSE after 2 s above 1 mm, or
 //!    unstable) is infeasible.
-//! 3. **Robustness.** The five best settings of the search and the starting
-//!    settings are run on rigs drawn around the identified one ([`Robust`]:
+//! 3. **Robustness.** The five best settings of the search, the starting
+//!    settings on the identified design model and the starting settings as
+//!    they were are run on rigs drawn around the identified one ([`Robust`]:
 //!    every physical parameter within +-F, the rig's effects kept); those
 //!    infeasible on any are dropped, and of the rest the one whose worst cost
 //!    over these rigs is least is chosen (the best on the identified rig
@@ -529,7 +530,12 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
         .take(5)
         .map(|(_, x)| knob_config(knobs, &start, x))
         .collect();
+    // And the settings as they were: commissioning must be able to change
+    // nothing where nothing tried holds better around the identified rig.
     candidates.push(start);
+    if setup.base != start {
+        candidates.push(setup.base);
+    }
     bar.set_message("robustness check");
     // Of the candidates that hold on every rig around the identified one,
     // the one whose worst cost there is least: settings that are best on
