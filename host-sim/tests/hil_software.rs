@@ -41,9 +41,13 @@ fn presets_set_up_with_two_commands_and_overrides_are_typed_exactly() {
     // A value the console cannot type exactly is refused, not approximated.
     cfg.mpc_eso.rw = 1.0 / 3.0;
     assert!(matches!(setup_commands(&cfg), Err(HilError::Spec(_))));
-    // So is a parameter the console does not offer.
+    // The design model goes to the board's model.* settings ...
     let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
     cfg.plant.m_kg = 60.0;
+    let cmds = setup_commands(&cfg).unwrap();
+    assert!(cmds.contains(&"set model.m_kg 6e1".to_string()), "{cmds:?}");
+    // ... but a parameter the console does not offer is refused.
+    cfg.plant.v_dead_m3 = 2e-6;
     assert!(matches!(setup_commands(&cfg), Err(HilError::Spec(_))));
 }
 
@@ -78,23 +82,27 @@ fn open_loop_scenarios_are_refused() {
     ));
 }
 
-/// The board designs on its own nominal model: a non-nominal design model is
-/// refused with a clear reason before any port is opened; a rig off nominal
-/// is fine (it is simulated here).
+/// The board designs on its settings' model.* parameters and on nominal
+/// values for the rest: a design model off nominal where the board has a
+/// setting is carried, elsewhere refused with a clear reason before any port
+/// is opened; a rig off nominal is fine (it is simulated here).
 #[test]
-fn a_design_model_off_nominal_is_refused() {
+fn a_design_model_the_board_cannot_hold_is_refused() {
     let mut cfg = ControllerConfig::preset(Preset::Paper, ControllerKind::MpcEso);
     let mut s = spec("step", cfg);
     let mut rig = *s.plant.params();
     rig.m_kg = 60.0;
+    rig.v_dead_m3 = 2e-6;
     s.plant = Plant::new(rig, s.plant.hose_model());
     host_sim::hil::check_board_model(&s).unwrap();
     cfg.plant.m_kg = 60.0;
+    host_sim::hil::check_board_model(&spec("step", cfg)).unwrap();
+    cfg.plant.v_dead_m3 = 2e-6;
     let s = spec("step", cfg);
     let e = host_sim::hil::check_board_model(&s)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("model.m_kg") && e.contains("nominal"), "{e}");
+    assert!(e.contains("v_dead_m3") && !e.contains("m_kg"), "{e}");
     let e = host_sim::hil::run_hil_serial(&s, "/dev/nonexistent", &Default::default())
         .unwrap_err()
         .to_string();

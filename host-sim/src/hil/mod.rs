@@ -605,21 +605,28 @@ fn run_on_ports(
     trace.map(|t| (t, None))
 }
 
-/// Refuse a controller whose design model is not the nominal plant: the
-/// board designs its controllers on its own nominal model (`dca_core`'s
-/// [`dca_core::params::PlantParams::NOMINAL`]) and no console setting changes it. The rig
-/// simulated here (`--plant`) may be anything.
+/// Refuse a controller whose design model differs from the nominal plant in
+/// a parameter the board cannot hold: the board designs its controllers on
+/// its settings' `model.*` parameters (set by [`setup_commands`]) and on
+/// nominal values for the rest. The rig simulated here (`--plant`) may be
+/// anything.
 pub fn check_board_model(spec: &RunSpec) -> Result<(), HilError> {
-    let off = crate::model::params::columns(&spec.controller.plant, &[], true);
+    let nominal = dca_core::params::PlantParams::NOMINAL;
+    let off: Vec<&str> = crate::model::params::KEYS
+        .iter()
+        .filter(|k| k.get(&spec.controller.plant).to_bits() != k.get(&nominal).to_bits())
+        .filter(|k| dca_app::settings::find(&format!("model.{}", k.name)).is_none())
+        .map(|k| k.name)
+        .collect();
     if off.is_empty() {
         return Ok(());
     }
-    let keys: Vec<&str> = off.iter().map(|(k, _)| *k).collect();
     Err(HilError::Spec(format!(
-        "the controller's design model is not nominal ({}): the board designs on its own \
-         nominal model, which cannot be changed from here; remove [model] / [controller.model] \
-         (the rig's parameters, --plant or [plant.params], may differ)",
-        keys.join(", ")
+        "the controller's design model differs from the nominal plant in {}, which the board \
+         has no model.* setting for (it designs on nominal values there); remove them from \
+         [model] / [controller.model] (the rig's parameters, --plant or [plant.params], may \
+         differ)",
+        off.join(", ")
     )))
 }
 
