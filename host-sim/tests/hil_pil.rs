@@ -365,6 +365,40 @@ fn the_documented_pil_run_passes() {
     assert!(err.contains("bit-identical"), "{err}");
 }
 
+/// The captured move of docs/scripts/move.txt (or record.txt) heads for
+/// 20 mm. How far the piston gets depends on how much emulated time the
+/// script's 2.5 s of wall clock gave the move (under load, much less): where
+/// the 20 mm reference held for 0.5 s of the board's time it must pass 10 mm,
+/// and in any case it must move towards it.
+fn assert_moves_toward_20_mm(log: &RunLog) {
+    let xi = log.channel("xi_m").unwrap();
+    let r = log.channel("ref_m").unwrap();
+    let held: Vec<f64> = xi
+        .iter()
+        .zip(r.iter())
+        .filter(|(_, r)| (**r - 0.02).abs() < 1e-4)
+        .map(|(x, _)| *x)
+        .collect();
+    assert!(
+        held.len() >= 5,
+        "the 20 mm reference held for {} rows",
+        held.len()
+    );
+    let top = held.iter().cloned().fold(f64::MIN, f64::max);
+    let rise = top - held[0];
+    assert!(
+        rise > 1e-3,
+        "the piston should move towards 20 mm: {} -> {top}",
+        held[0]
+    );
+    if held.len() as f64 * log.dt_s() >= 0.5 {
+        assert!(
+            top > 0.01,
+            "0.5 s at the 20 mm reference: the piston at {top}"
+        );
+    }
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and `cargo fw-qemu`; run by .ci/firmware.sh"]
 fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
@@ -393,36 +427,7 @@ fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
     // so the script's sleeps give fewer rows there: ask for a run, not a count.
     assert!(log.len() > 100, "{} rows", log.len());
     assert!((log.dt_s() - 0.01).abs() < 1e-12, "step {}", log.dt_s());
-    // How far the piston gets towards 20 mm depends on how much emulated
-    // time the script's 2.5 s of wall clock gave the move (under load, much
-    // less): where the 20 mm reference held for 0.5 s of the board's time it
-    // must pass 10 mm, and in any case it must move towards it.
-    let xi = log.channel("xi_m").unwrap();
-    let r = log.channel("ref_m").unwrap();
-    let held: Vec<f64> = xi
-        .iter()
-        .zip(r.iter())
-        .filter(|(_, r)| (**r - 0.02).abs() < 1e-4)
-        .map(|(x, _)| *x)
-        .collect();
-    assert!(
-        held.len() >= 5,
-        "the 20 mm reference held for {} rows",
-        held.len()
-    );
-    let top = held.iter().cloned().fold(f64::MIN, f64::max);
-    let rise = top - held[0];
-    assert!(
-        rise > 1e-3,
-        "the piston should move towards 20 mm: {} -> {top}",
-        held[0]
-    );
-    if held.len() as f64 * log.dt_s() >= 0.5 {
-        assert!(
-            top > 0.01,
-            "0.5 s at the 20 mm reference: the piston at {top}"
-        );
-    }
+    assert_moves_toward_20_mm(&log);
     // A check run held out from the fit (the capture itself would be
     // refused as both): a simulated run of the nominal rig.
     let check = dir.join("check.csv");
@@ -547,36 +552,7 @@ fn a_console_dump_is_captured_as_a_1_ms_run_log() {
     // `dump` then ends the record early; every row it has is there.
     assert!(log.len() > 500 && log.len() <= 3000, "{} rows", log.len());
     assert!((log.dt_s() - 0.001).abs() < 1e-12, "step {}", log.dt_s());
-    // How far the piston gets towards 20 mm depends on how much emulated
-    // time the script's 2.5 s of wall clock gave the move (under load, much
-    // less): where the 20 mm reference held for 0.5 s of the board's time it
-    // must pass 10 mm, and in any case it must move towards it.
-    let xi = log.channel("xi_m").unwrap();
-    let r = log.channel("ref_m").unwrap();
-    let held: Vec<f64> = xi
-        .iter()
-        .zip(r.iter())
-        .filter(|(_, r)| (**r - 0.02).abs() < 1e-4)
-        .map(|(x, _)| *x)
-        .collect();
-    assert!(
-        held.len() >= 5,
-        "the 20 mm reference held for {} rows",
-        held.len()
-    );
-    let top = held.iter().cloned().fold(f64::MIN, f64::max);
-    let rise = top - held[0];
-    assert!(
-        rise > 1e-3,
-        "the piston should move towards 20 mm: {} -> {top}",
-        held[0]
-    );
-    if held.len() as f64 * log.dt_s() >= 0.5 {
-        assert!(
-            top > 0.01,
-            "0.5 s at the 20 mm reference: the piston at {top}"
-        );
-    }
+    assert_moves_toward_20_mm(&log);
     let text = std::fs::read_to_string(&out_csv).unwrap();
     assert!(text.contains("# source=dca-firmware record"));
     // `gap` reads it as it is (a simulated run of the nominal rig as the check).
