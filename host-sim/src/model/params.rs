@@ -426,13 +426,21 @@ pub(crate) fn lookup_key(v: &str, hose: bool) -> Result<Key, String> {
         .ok_or_else(|| format!("unknown field `{v}`, expected one of {}", keys_of(hose)))
 }
 
-/// Reads a table of parameters into `out`.
-struct TableSeed<'a> {
-    hose: bool,
-    out: &'a mut Vec<Entry>,
+/// Reads a table keyed by plant parameter (the top-level table, `hose:
+/// false`, or `[hose]`) into `out`: each key with its value as `V` and where
+/// the value is. `expecting` names the top-level table and `[hose]` in type
+/// errors. Plant-parameter files and tolerance specs
+/// ([`crate::sim::tolerance`]) both read their keys through it.
+pub(crate) struct KeyedTable<'a, V> {
+    /// Reading `[hose]`.
+    pub hose: bool,
+    /// What the top-level table and `[hose]` are, for messages.
+    pub expecting: [&'static str; 2],
+    /// The keys read, in file order.
+    pub out: &'a mut Vec<(&'static ParamKey, Spanned<V>)>,
 }
 
-impl<'de> DeserializeSeed<'de> for TableSeed<'_> {
+impl<'de, V: Deserialize<'de>> DeserializeSeed<'de> for KeyedTable<'_, V> {
     type Value = ();
 
     fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
@@ -440,15 +448,11 @@ impl<'de> DeserializeSeed<'de> for TableSeed<'_> {
     }
 }
 
-impl<'de> Visitor<'de> for TableSeed<'_> {
+impl<'de, V: Deserialize<'de>> Visitor<'de> for KeyedTable<'_, V> {
     type Value = ();
 
     fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(if self.hose {
-            "the table [hose]"
-        } else {
-            "a table of plant parameters"
-        })
+        f.write_str(self.expecting[usize::from(self.hose)])
     }
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
@@ -458,17 +462,14 @@ impl<'de> Visitor<'de> for TableSeed<'_> {
             lookup: |v: &str| lookup_key(v, hose),
         })? {
             match key {
-                Key::Hose => map.next_value_seed(TableSeed {
+                Key::Hose => map.next_value_seed(KeyedTable {
                     hose: true,
+                    expecting: self.expecting,
                     out: &mut *self.out,
                 })?,
                 Key::Param(k) => {
-                    let v: Spanned<toml::Value> = map.next_value()?;
-                    self.out.push(Entry {
-                        key: k,
-                        span: v.span(),
-                        value: v.into_inner(),
-                    });
+                    let v: Spanned<V> = map.next_value()?;
+                    self.out.push((k, v));
                 }
             }
         }
@@ -478,12 +479,21 @@ impl<'de> Visitor<'de> for TableSeed<'_> {
 
 impl<'de> Deserialize<'de> for ParamsToml {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let mut entries = Vec::new();
-        TableSeed {
+        let mut read: Vec<(&'static ParamKey, Spanned<toml::Value>)> = Vec::new();
+        KeyedTable {
             hose: false,
-            out: &mut entries,
+            expecting: ["a table of plant parameters", "the table [hose]"],
+            out: &mut read,
         }
         .deserialize(d)?;
+        let entries = read
+            .into_iter()
+            .map(|(key, v)| Entry {
+                key,
+                span: v.span(),
+                value: v.into_inner(),
+            })
+            .collect();
         Ok(Self { entries })
     }
 }

@@ -30,13 +30,12 @@
 use std::ops::Range;
 use std::path::Path;
 
-use serde::de::{DeserializeSeed, Deserializer, MapAccess, Visitor};
+use serde::de::{DeserializeSeed, Deserializer};
 use serde::Deserialize;
 use toml::Spanned;
 
 use crate::io::num::Num;
-use crate::io::toml_key::KeySeed;
-use crate::model::params::{lookup_key, Key, ParamKey, Spread, TRUNCATE_SIGMAS};
+use crate::model::params::{KeyedTable, ParamKey, Spread, TRUNCATE_SIGMAS};
 use crate::sim::config::{self, FileError};
 
 /// One parameter's tolerance.
@@ -77,57 +76,15 @@ struct RawSpec {
     entries: Vec<(&'static ParamKey, Spanned<RawEntry>)>,
 }
 
-/// Reads the top-level table (`hose: false`) or `[hose]` into `out`.
-struct TableSeed<'a> {
-    hose: bool,
-    out: &'a mut Vec<(&'static ParamKey, Spanned<RawEntry>)>,
-}
-
-impl<'de> DeserializeSeed<'de> for TableSeed<'_> {
-    type Value = ();
-
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
-        d.deserialize_map(self)
-    }
-}
-
-impl<'de> Visitor<'de> for TableSeed<'_> {
-    type Value = ();
-
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(if self.hose {
-            "the table [hose] of hose-wall tolerances"
-        } else {
-            "a table of tolerances by plant parameter"
-        })
-    }
-
-    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        let hose = self.hose;
-        while let Some(key) = map.next_key_seed(KeySeed {
-            expecting: "a plant parameter",
-            lookup: |v: &str| lookup_key(v, hose),
-        })? {
-            match key {
-                Key::Hose => map.next_value_seed(TableSeed {
-                    hose: true,
-                    out: &mut *self.out,
-                })?,
-                Key::Param(k) => {
-                    let e: Spanned<RawEntry> = map.next_value()?;
-                    self.out.push((k, e));
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
 impl<'de> Deserialize<'de> for RawSpec {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let mut entries = Vec::new();
-        TableSeed {
+        KeyedTable {
             hose: false,
+            expecting: [
+                "a table of tolerances by plant parameter",
+                "the table [hose] of hose-wall tolerances",
+            ],
             out: &mut entries,
         }
         .deserialize(d)?;
