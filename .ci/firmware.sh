@@ -103,7 +103,7 @@ timeout 300 python3 firmware/qemu/console_check.py "$QEMU_ELF"
 
 step "processor in the loop over ttys: faults zero the drive; hil --port/--console; console capture -> gap; the paper's four scenarios bit-identical to software; the on-board record (a HIL run's record equals the host's log; a dump captured -> gap); the scope in tmux"
 DCA_QEMU_ELF="$PWD/$QEMU_ELF" timeout 900 \
-    cargo test -p host-sim --test hil_pil -- --ignored --nocapture --test-threads 1
+    cargo test --test hil_pil -- --ignored --nocapture --test-threads 1
 
 step "the documented commands for a board (against the emulated one: --qemu for --port) and for QEMU"
 # host-sim/src/cli/doc_commands.rs; the others ran in .ci/run's documented-commands step.
