@@ -404,8 +404,23 @@ fn assert_moves_toward_20_mm(log: &RunLog) {
 fn a_console_script_captures_a_run_log_the_gap_diagnosis_reads() {
     let dir = std::env::temp_dir().join(format!("dca-capture-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    // The script the documentation shows.
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/scripts/move.txt");
+    // The script the documentation shows, its sleeps doubled: the gap needs
+    // 200 rows (2 s of board time at 10 ms), the documented 5.5 s of
+    // wall-clock sleeps gave 185 on a machine loaded with nine simulations
+    // (the emulated clock ran at a third of the wall clock's pace); doubled,
+    // the emulator may run at a sixth of it.
+    let doc = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/scripts/move.txt");
+    let doubled: String = std::fs::read_to_string(&doc)
+        .unwrap()
+        .lines()
+        .map(|l| match l.trim().strip_prefix("sleep ") {
+            Some(s) => format!("sleep {}\n", 2.0 * s.trim().parse::<f64>().unwrap()),
+            None => format!("{l}\n"),
+        })
+        .collect();
+    assert!(doubled.contains("sleep 5\n"), "{doubled}");
+    let script = dir.join("move.txt");
+    std::fs::write(&script, doubled).unwrap();
     let run = dir.join("run.csv");
     let out = host_sim()
         .args(["console", "--qemu", "--elf"])
