@@ -22,7 +22,7 @@ pub struct Args {
     timeout: f64,
     /// Set the firmware's link timeout (`hil.timeout_ms`) through the console
     /// before arming (needs --console or --qemu). Default: the board's own
-    /// setting (factory 100 ms); with --qemu 5000, since the emulated board's
+    /// setting (factory 100 ms); with --qemu 60000 (its largest), since the emulated board's
     /// clock follows a host that is not real time.
     #[arg(long)]
     link_timeout_ms: Option<u32>,
