@@ -3,9 +3,12 @@
 //! Inputs are the recorded drive command `vcmd_mps` (through the servo model,
 //! so the servo and the ball screw are part of what is tested) and the
 //! recorded load `ft_n` (its noise reduced by a running median), each held
-//! over one log interval (the firmware holds
-//! its command for a control period; the simulator's commands change only at
-//! controller ticks, which fall on the log grid). The model starts at rest at
+//! over one log interval of one controller tick (the firmware holds its
+//! command for a control period; the simulator's commands change only at
+//! controller ticks, which fall on the log grid). On longer rows the command
+//! is corrected within a bound toward the row's mean the encoder tells
+//! ([`RowCommands`]) and the load interpolated between rows, held across a
+//! step. The model starts at rest at
 //! the first encoder count and the measured position and load averaged over
 //! the first 20 ms while the encoder has not moved. The outputs are what ideal sensors
 //! (with the candidate `sensor_delay`, if any, named or in its general family)
@@ -166,7 +169,16 @@ pub fn replay_visit(
     }
     let mut sensors = Sensors::new(SensorMode::Ideal, 0).with_effects(rig.effects(), log_dt);
     let mut diverged = false;
-    for (k, (&ft, &vcmd)) in load.iter().zip(&log.vcmd_mps).enumerate() {
+    let rows = RowCommands::of(log, rig.plant().params().tau_m_s);
+    // On rows longer than a controller tick the load is interpolated between
+    // the rows: held, it would lag by half a row (5 ms at 10 ms, a quarter of
+    // the hydraulic mode's period); on 1 ms rows it is held, as recorded.
+    // A change from one row to the next beyond `load_jump_n` is a step (a
+    // load applied or released): held, it takes effect at the next row, as
+    // the recorded one did; a ramp to it would start it half a row early.
+    let interpolate = log_dt > ONE_TICK_ROW_S;
+    let load_jump_n = if interpolate { load_jump(load) } else { 0.0 };
+    for (k, (&ft, &recorded)) in load.iter().zip(&log.vcmd_mps).enumerate() {
         let ft = truth(CalChannel::Ft, ft);
         if diverged {
             if !visit(k, [f64::NAN; 4]) {
@@ -185,10 +197,164 @@ pub fn replay_visit(
         if !visit(k, [r.xo_m, r.xi_m, r.p1_pa, r.p2_pa]) {
             return;
         }
-        for _ in 0..sub {
-            rig.step(&mut s, vcmd, ft, h);
+        // The load between this row and the next, at each plant step's
+        // middle (held where it jumps, and on rows of one tick).
+        let next = load
+            .get(k + 1)
+            .map(|f| truth(CalChannel::Ft, *f))
+            .filter(|f| interpolate && (f - ft).abs() <= load_jump_n)
+            .unwrap_or(ft);
+        let load_at = |j: usize| {
+            if next == ft {
+                ft
+            } else {
+                ft + (next - ft) * (j as f64 + 0.5) / sub as f64
+            }
+        };
+        let mut vcmd = recorded;
+        if let (Some(rows), Some(&xi_next)) = (&rows, log.xi_m.get(k + 1)) {
+            let mut probe = s;
+            for j in 0..sub {
+                rig.step(&mut probe, recorded, load_at(j), h);
+            }
+            let miss = truth(CalChannel::Xi, xi_next) - probe.x.xi_m;
+            let b = rows.bound[k];
+            vcmd += (miss / rows.travel_per_mps).clamp(-b, b);
+        }
+        for j in 0..sub {
+            rig.step(&mut s, vcmd, load_at(j), h);
         }
         diverged = !s.is_finite();
+    }
+}
+
+/// Rows longer than this hold several of the controller's commands (it
+/// ticks at 1 ms; docs/interfaces.md section 1), of which the log keeps the
+/// first.
+const ONE_TICK_ROW_S: f64 = 1.5e-3;
+
+/// Bound of the command's correction, in robust standard deviations of one
+/// recorded sample about its row's mean ([`RowCommands::bound`]): that
+/// scatter (the controller's response to sensor noise) passes, a systematic
+/// departure (a servo that cannot follow) keeps all but this much of its
+/// size.
+pub const CORRECTION_SIGMAS: f64 = 3.0;
+
+/// Robust standard deviations of the load's change between rows beyond
+/// which a change is a step ([`load_jump`]).
+const LOAD_JUMP_SIGMAS: f64 = 10.0;
+
+/// The change of the load between two rows beyond which it is a step and not
+/// a smooth change: [`LOAD_JUMP_SIGMAS`] robust standard deviations of the
+/// changes (sensor noise and the smooth loads' own change per row).
+fn load_jump(load: &[f64]) -> f64 {
+    let d: Vec<f64> = load
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite())
+        .collect();
+    LOAD_JUMP_SIGMAS * 1.4826 * super::stats::median(&d)
+}
+
+/// How the replay holds the drive command over rows longer than one
+/// controller tick.
+///
+/// On rows of one tick (1 ms) the replay holds the recorded command. On
+/// longer rows (a board capture at 10 ms keeps one command in ten) the
+/// recorded one is a single sample of a command the controller changed at
+/// every tick, largely in response to sensor noise, and around a step it
+/// may precede the controller's reaction; held over the row it drives the
+/// replayed encoder off (a clean rig under `cmpc-eso` `limit` at 10 ms: fit
+/// gap 114 against 0.4 at 1 ms). The encoder, which has no noise, tells the
+/// row's mean command. At each row the replay first steps a copy of its
+/// model with the recorded command; the command it holds is the recorded
+/// one plus the correction that takes a first-order speed loop of the
+/// model's time constant to the next row's recorded position, bounded by
+/// [`RowCommands::bound`]. The correction is solved on the model being
+/// replayed: a candidate whose servo explains the encoder (a force or
+/// speed limit) needs none, the nominal model needs one as large as the
+/// bound allows, so the servo's departure still shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RowCommands {
+    /// Bound of each row's correction, m/s: [`CORRECTION_SIGMAS`] robust
+    /// standard deviations of the corrections the nominal speed loop needs
+    /// row by row (the scatter of one sample about its row's mean), at most
+    /// the command's own scatter from row to row or the encoder's
+    /// resolution over a row, whichever is larger; widened by the
+    /// largest jump of the recorded command into or out of the row (where a
+    /// step reached the controller within the row, the unrecorded commands
+    /// lie anywhere between).
+    pub bound: Vec<f64>,
+    /// Travel over a row per m/s of held command: `dt - tau (1 - e^(-dt/tau))`.
+    pub travel_per_mps: f64,
+}
+
+impl RowCommands {
+    /// The bounds for `log` and a speed loop of time constant `tau_m_s`;
+    /// `None` on rows of one tick, or where the log tells nothing.
+    pub fn of(log: &RunLog, tau_m_s: f64) -> Option<Self> {
+        let dt = log.dt_s();
+        let n = log.len();
+        if dt <= ONE_TICK_ROW_S || n < 3 || tau_m_s.is_nan() || tau_m_s <= 0.0 {
+            return None;
+        }
+        let decay = (-dt / tau_m_s).exp();
+        let (from_v0, from_u) = (tau_m_s * (1.0 - decay), dt - tau_m_s * (1.0 - decay));
+        let u = &log.vcmd_mps;
+        // The scatter of one recorded sample about its row's mean: the
+        // corrections that take the nominal speed loop through the recorded
+        // encoder row by row (robust: a servo that departs on fewer than
+        // half of the rows does not widen it).
+        let mut v = 0.0;
+        let mut abs = Vec::with_capacity(n - 1);
+        for (w, uk) in log.xi_m.windows(2).zip(u) {
+            let m = (w[1] - w[0] - v * from_v0) / from_u;
+            abs.push((m - uk).abs());
+            v = m + (v - m) * decay;
+        }
+        abs.retain(|d| d.is_finite());
+        let from_encoder = 1.4826 * super::stats::median(&abs);
+        // ... but no wider than the command's own scatter from row to row
+        // (from its second differences: sqrt(6) times a white scatter) or,
+        // where the command is smooth, the encoder's resolution over a row:
+        // an encoder that departs from the command on most rows (a stalled
+        // drive) must not widen its own excuse.
+        let second: Vec<f64> = u
+            .windows(3)
+            .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+            .filter(|d| d.is_finite())
+            .collect();
+        let own = 1.4826 * super::stats::median(&second) / 6f64.sqrt();
+        let count_m = log
+            .xi_m
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .filter(|d| *d > 0.0 && d.is_finite())
+            .fold(f64::INFINITY, f64::min);
+        let resolution = if count_m.is_finite() {
+            count_m / from_u
+        } else {
+            0.0
+        };
+        let sigma = from_encoder.min(own.max(resolution));
+        if !sigma.is_finite() {
+            return None;
+        }
+        let bound = (0..n)
+            .map(|k| {
+                let into = if k > 0 { (u[k] - u[k - 1]).abs() } else { 0.0 };
+                let out = if k + 1 < n {
+                    (u[k + 1] - u[k]).abs()
+                } else {
+                    0.0
+                };
+                CORRECTION_SIGMAS * sigma + into.max(out)
+            })
+            .collect();
+        Some(Self {
+            bound,
+            travel_per_mps: from_u,
+        })
     }
 }
 
@@ -235,6 +401,100 @@ mod tests {
         let r = replay(&log, &rig, 5e-4);
         assert!(r.ch.iter().flatten().all(|v| v.is_finite()));
         assert!(r.ch[1][4] > r.ch[1][0], "the encoder moves: {:?}", r.ch[1]);
+    }
+
+    /// A 1 ms log of `rig` driven by a command that changes at every tick
+    /// (a slow sine, noise of 1 mm/s, a step at 0.5 s), no load, ideal
+    /// sensors.
+    fn ticked_log(rig: &Rig) -> RunLog {
+        let mut s = rig.initial_state(0.0);
+        let mut text = String::from("t_s,ref_m,vcmd_mps,xi_m,xo_m,p1_pa,p2_pa,ft_n\n");
+        let mut seed = 7u64;
+        for k in 0..1500 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let noise = ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 3.5e-3;
+            let t = k as f64 * 1e-3;
+            let step = if t >= 0.5 { 0.03 } else { 0.0 };
+            let u = 0.01 * (2.0 * t).sin() + step + noise;
+            let x = s.x;
+            text += &format!(
+                "{t:.3},0,{u:e},{:e},{:e},{:e},{:e},0\n",
+                x.xi_m, x.xo_m, x.p1_pa, x.p2_pa
+            );
+            for _ in 0..10 {
+                rig.step(&mut s, u, 0.0, 1e-4);
+            }
+        }
+        RunLog::parse(&text, "ticked.csv").unwrap()
+    }
+
+    fn nominal() -> Rig {
+        Rig::new(crate::model::plant::Plant::nominal(), Default::default()).unwrap()
+    }
+
+    /// A drive whose speed is capped at 25 mm/s (the command after the step
+    /// asks for 30 to 40).
+    fn capped() -> Rig {
+        let mut e = crate::model::effects::Effects::NONE;
+        e.parse_arg("motor_limit:force_max_n=1e6,speed_max_mps=0.025")
+            .unwrap();
+        Rig::new(crate::model::plant::Plant::nominal(), e).unwrap()
+    }
+
+    /// The largest distance of the replayed encoder from the recorded one.
+    fn encoder_miss(log: &RunLog, rig: &Rig) -> f64 {
+        let r = replay(log, rig, 5e-4);
+        r.ch[1]
+            .iter()
+            .zip(&log.xi_m)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn one_tick_rows_hold_the_recorded_command() {
+        assert_eq!(RowCommands::of(&ticked_log(&nominal()), 0.01), None);
+    }
+
+    /// On 10 ms rows the recorded samples, held, drive a first-order speed
+    /// loop off by millimetres (their noise's random walk and the step they
+    /// precede); the replay's held means keep the encoder on the recorded
+    /// one.
+    #[test]
+    fn ten_ms_rows_hold_the_row_s_mean_command() {
+        let log = ticked_log(&nominal()).decimate(10);
+        let (tau, dt) = (0.01f64, 0.01);
+        let (mut v, mut x, mut raw) = (0.0, log.xi_m[0], 0.0f64);
+        for (u, xi) in log.vcmd_mps.iter().zip(&log.xi_m) {
+            raw = raw.max((x - xi).abs());
+            let d = (-dt / tau).exp();
+            x += v * tau * (1.0 - d) + u * (dt - tau * (1.0 - d));
+            v = u + (v - u) * d;
+        }
+        let held = encoder_miss(&log, &nominal());
+        assert!(
+            held < 2e-6 && raw > 20.0 * held,
+            "raw {raw:e}, held {held:e}"
+        );
+    }
+
+    /// A servo that cannot follow still shows on 10 ms rows: the nominal
+    /// model's encoder runs ahead of the recorded one, as far as the
+    /// correction's bound lets it, while the model with the speed cap
+    /// replays it.
+    #[test]
+    fn a_servo_that_cannot_follow_still_shows_on_10_ms_rows() {
+        let log = ticked_log(&capped()).decimate(10);
+        let (nominal, capped) = (
+            encoder_miss(&log, &nominal()),
+            encoder_miss(&log, &capped()),
+        );
+        assert!(
+            nominal > 1e-3 && capped < 5e-6,
+            "nominal {nominal:e}, capped {capped:e}"
+        );
     }
 
     #[test]
