@@ -203,6 +203,14 @@ fn stepload_comparison_with_memory_hose() {
     assert!(memory > 1.5 * grnn);
 }
 
+/// The largest difference between two trajectories, element by element.
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).abs())
+        .fold(0.0, f64::max)
+}
+
 /// Xo (m) of the first 2 s of `openloop` stepped on `plant` at the memory
 /// hose's step.
 fn openloop_xo(plant: &Plant) -> Vec<f64> {
@@ -241,11 +249,7 @@ fn memory_plant_solve_matches_tight_solve() {
     );
     let a = openloop_xo(&shipped);
     let b = openloop_xo(&former);
-    let worst = a
-        .iter()
-        .zip(&b)
-        .map(|(p, q)| (p - q).abs())
-        .fold(0.0, f64::max);
+    let worst = max_abs_diff(&a, &b);
     let (ea, eb) = (
         shipped.grnn_eval_stats().unwrap().evals,
         former.grnn_eval_stats().unwrap().evals,
@@ -286,11 +290,7 @@ fn memory_plant_matches_tight_reference() {
     let b = run(&shipped.clone());
     assert_eq!(a, b, "the evaluation does not depend on the caches");
     let r = run(&tight);
-    let worst = a
-        .iter()
-        .zip(&r)
-        .map(|(p, q)| (p - q).abs())
-        .fold(0.0, f64::max);
+    let worst = max_abs_diff(&a, &r);
     println!(
         "openloop 2 s: max |dXo| = {:.3e} mm against eps 1e-9; per step {:.1} evaluations, \
          {:.0} kernels, {:.4} rebuilds",

@@ -253,7 +253,7 @@ fn load_jump(load: &[f64]) -> f64 {
         .map(|w| (w[1] - w[0]).abs())
         .filter(|d| d.is_finite())
         .collect();
-    LOAD_JUMP_SIGMAS * 1.4826 * super::stats::median(&d)
+    LOAD_JUMP_SIGMAS * super::stats::mad_sigma(&d)
 }
 
 /// How the replay holds the drive command over rows longer than one
@@ -313,18 +313,13 @@ impl RowCommands {
             v = m + (v - m) * decay;
         }
         abs.retain(|d| d.is_finite());
-        let from_encoder = 1.4826 * super::stats::median(&abs);
+        let from_encoder = super::stats::mad_sigma(&abs);
         // ... but no wider than the command's own scatter from row to row
-        // (from its second differences: sqrt(6) times a white scatter) or,
-        // where the command is smooth, the encoder's resolution over a row:
-        // an encoder that departs from the command on most rows (a stalled
+        // (its white noise level, from its second differences) or, where
+        // the command is smooth, the encoder's resolution over a row: an
+        // encoder that departs from the command on most rows (a stalled
         // drive) must not widen its own excuse.
-        let second: Vec<f64> = u
-            .windows(3)
-            .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-            .filter(|d| d.is_finite())
-            .collect();
-        let own = 1.4826 * super::stats::median(&second) / 6f64.sqrt();
+        let own = super::stats::noise_sigma(u);
         let count_m = log
             .xi_m
             .windows(2)

@@ -24,6 +24,16 @@ pub fn median(v: &[f64]) -> f64 {
     }
 }
 
+/// Median absolute value of a zero-mean normal variable per unit of its
+/// standard deviation.
+pub const MAD_PER_SIGMA: f64 = 0.674_489_750_196_081_7;
+
+/// Robust standard deviation of zero-centred values from their absolute
+/// values `abs` (NaN-free): their median over [`MAD_PER_SIGMA`].
+pub fn mad_sigma(abs: &[f64]) -> f64 {
+    median(abs) / MAD_PER_SIGMA
+}
+
 /// White measurement-noise level of a sampled signal, from the median
 /// absolute second difference (robust to the signal's own smooth motion and
 /// to a minority of steps): sigma = MAD(d2) / (0.6745 sqrt 6).
@@ -35,7 +45,7 @@ pub fn noise_sigma(x: &[f64]) -> f64 {
         .windows(3)
         .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
         .collect();
-    median(&d2) / (0.674_489_750_196_081_7 * 6f64.sqrt())
+    median(&d2) / (MAD_PER_SIGMA * 6f64.sqrt())
 }
 
 /// Mean of a slice.
