@@ -154,10 +154,11 @@ fn grnn_runs_are_reproducible() {
     assert!((a.xo_m - 0.02343).abs() < 1e-3, "Xo {}", a.xo_m);
 }
 
-/// Section 11 item 18: MPC-ESO "paper" on stepload. docs/model.md quotes 0.97 mm
-/// (GRNN hose), 0.96 mm (rigid), 2.01 mm (true hose); measured here 1.000,
-/// 1.000 and 2.011 mm. The static GRNN hose must be within 10 % of the rigid
-/// one (it is within 0.1 %), the true hose about 2 mm (+-3 %).
+/// docs/model.md section 11 item 18: MPC-ESO "paper" on stepload; the
+/// figures docs/simulator.md gives are 1.000 mm (GRNN hose), 1.000 mm
+/// (rigid) and 2.011 mm (true hose). The static GRNN hose must be within
+/// 10 % of the rigid one (it is within 0.1 %), the true hose about 2 mm
+/// (+-3 %).
 #[test]
 fn stepload_deviation_grnn_vs_rigid_vs_true_hose() {
     let dev = |m: HoseModel| {

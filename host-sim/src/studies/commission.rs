@@ -2,7 +2,8 @@
 //! "Commissioning"): what a user does on the bench, on a simulated rig.
 //!
 //! 1. **Identification runs.** The rig runs the two excitations of
-//!    docs/scripts/identify.txt with the starting settings, realistic
+//!    docs/scripts/identify-fit.txt and identify-check.txt (as scenarios:
+//!    the `.toml` files beside them) with the starting settings, realistic
 //!    sensors, recorded at the board's 1 ms tick: a move-and-load run (steps
 //!    of the position with 800 N and 300 N load steps) to fit on, and a
 //!    tracking run (a 0.25 Hz cosine under a 0.4 Hz sine load) held out.
