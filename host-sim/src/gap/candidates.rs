@@ -379,13 +379,15 @@ impl Fitter<'_> {
     /// spectrum ([`HysteresisSpectrum`]) in units of 1e-13 m^3/Pa.
     fn fit_spectrum(&self, before_fit: f64) -> Option<(Effects, f64)> {
         const UNIT: f64 = 1e-13;
+        const N: usize = SPECTRUM_YIELDS_PA.len();
         let with = |x: &[f64]| Effects {
             hose_spectrum: Some(HysteresisSpectrum {
                 c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
+                stop_c_m3pp: std::array::from_fn(|i| x[N + i].max(0.0) * UNIT),
             }),
             ..Effects::NONE
         };
-        self.fit_learned(SPECTRUM_YIELDS_PA.len(), &with, None, before_fit)
+        self.fit_learned(2 * N, &with, None, before_fit)
     }
 
     /// The seals' friction in its general family ([`FrictionMap`]): the

@@ -147,9 +147,8 @@ fn spectrum_loop(h: &HysteresisSpectrum) -> Vec<(f64, f64)> {
         while (target - p).abs() > 0.5 * dp_step {
             let dp = dp_step.copysign(target - p);
             for (i, zi) in z.iter_mut().enumerate() {
-                let el = h.element(i);
-                v += effects::hysteresis_engagement(&el, *zi, dp) * el.c_m3pp * dp;
-                *zi += effects::hysteresis_rate(&el, *zi, dp);
+                v += h.compliance_m3pp(i, *zi, dp) * dp;
+                *zi += effects::hysteresis_rate(&h.element(i), *zi, dp);
             }
             p += dp;
             loop_pts.push((p * 1e-6, v * 1e9));
@@ -533,13 +532,15 @@ fn hose_spectrum_section(
     let _ = writeln!(
         md,
         "## The hose wall's learned hysteresis\n\n\
-         | element yield [kPa] | {} |\n|---|{}\n| compliance when engaged [m^3/Pa] | {} |\n\n\
+         | element yield [kPa] | {} |\n|---|{}\n| compliance when engaged (play) [m^3/Pa] | {} |\n\
+         | compliance while not engaged (stop) [m^3/Pa] | {} |\n\n\
          ![hose hysteresis](hose_spectrum.png)\n",
         SPECTRUM_YIELDS_PA
             .map(|y| format!("{:.0}", y * 1e-3))
             .join(" | "),
         "---|".repeat(SPECTRUM_YIELDS_PA.len()),
         h.c_m3pp.map(|c| format!("{c:.2e}")).join(" | "),
+        h.stop_c_m3pp.map(|c| format!("{c:.2e}")).join(" | "),
     );
     Ok(())
 }
@@ -832,7 +833,7 @@ mod tests {
     #[test]
     fn spectrum_loop_opens_with_the_yield() {
         let width_at_2mpa = |c: [f64; 5]| {
-            let pts = spectrum_loop(&HysteresisSpectrum { c_m3pp: c });
+            let pts = spectrum_loop(&HysteresisSpectrum::plays(c));
             let near = |from: usize, to: usize| {
                 pts[from..to]
                     .iter()

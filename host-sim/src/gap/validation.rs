@@ -179,9 +179,7 @@ fn general_family_cases() -> Vec<Case> {
             name: "hose_hysteresis (two scales)".into(),
             truth: vec![HoseHysteresis],
             effects: Effects {
-                hose_spectrum: Some(HysteresisSpectrum {
-                    c_m3pp: [1.5e-13, 0.0, 0.0, 0.0, 3e-13],
-                }),
+                hose_spectrum: Some(HysteresisSpectrum::plays([1.5e-13, 0.0, 0.0, 0.0, 3e-13])),
                 ..Effects::NONE
             },
         },

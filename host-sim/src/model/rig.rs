@@ -395,8 +395,7 @@ impl Rig {
                 // the named form); the compliances add up.
                 let dp0 = dp;
                 for i in 0..NS {
-                    let el = spec.element(i);
-                    c += effects::hysteresis_engagement(&el, s.ext.hs_pa[j][i], dp0) * el.c_m3pp;
+                    c += spec.compliance_m3pp(i, s.ext.hs_pa[j][i], dp0);
                 }
                 dp = dp_nom * c_nom / c;
                 for i in 0..NS {
@@ -592,7 +591,7 @@ mod tests {
     fn hysteresis_spectrum_is_a_sum_of_named_elements() {
         let with = |c: [f64; NS]| {
             let e = Effects {
-                hose_spectrum: Some(effects::HysteresisSpectrum { c_m3pp: c }),
+                hose_spectrum: Some(effects::HysteresisSpectrum::plays(c)),
                 ..Effects::NONE
             };
             run(&Rig::new(Plant::nominal(), e).unwrap())
@@ -625,10 +624,43 @@ mod tests {
         // Both named and general at once are refused.
         let mut e = Effects::NONE;
         e.set(EffectKind::HoseHysteresis, Some(&[1e-12, 0.0, 1e5]));
-        e.hose_spectrum = Some(effects::HysteresisSpectrum {
-            c_m3pp: [1e-13; NS],
-        });
+        e.hose_spectrum = Some(effects::HysteresisSpectrum::plays([1e-13; NS]));
         assert!(Rig::new(Plant::nominal(), e).is_err());
+    }
+
+    /// The spectrum's stops: a stop and a play of the same compliance at
+    /// one yield add that compliance whatever the engagement, so the pair
+    /// at the smallest yield and at the largest give the same rig (to
+    /// rounding), unlike the nominal one; a stop alone differs from the
+    /// play alone (it gives right after a reversal, the play once the
+    /// pressure has moved on).
+    #[test]
+    fn a_stop_and_a_play_of_one_compliance_add_it_whatever_the_history() {
+        let with = |plays: [f64; NS], stops: [f64; NS]| {
+            let e = Effects {
+                hose_spectrum: Some(effects::HysteresisSpectrum {
+                    c_m3pp: plays,
+                    stop_c_m3pp: stops,
+                }),
+                ..Effects::NONE
+            };
+            run(&Rig::new(Plant::nominal(), e).unwrap())
+        };
+        let max_diff_um = |a: &[RigState], b: &[RigState]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x.x.xo_m - y.x.xo_m).abs() / 1e-6)
+                .fold(0.0, f64::max)
+        };
+        let c = 1e-12;
+        let small = with([c, 0.0, 0.0, 0.0, 0.0], [c, 0.0, 0.0, 0.0, 0.0]);
+        let large = with([0.0, 0.0, 0.0, 0.0, c], [0.0, 0.0, 0.0, 0.0, c]);
+        assert!(max_diff_um(&small, &large) < 1e-6);
+        assert!(max_diff_um(&small, &run(&rig(None))) > 1.0);
+        let stop = with([0.0; NS], [0.0, 0.0, c, 0.0, 0.0]);
+        let play = with([0.0, 0.0, c, 0.0, 0.0], [0.0; NS]);
+        assert!(max_diff_um(&stop, &play) > 1.0);
+        assert!(max_diff_um(&stop, &run(&rig(None))) > 1.0);
     }
 
     /// The gas relaxation: zero weights are the nominal rig to rounding; one

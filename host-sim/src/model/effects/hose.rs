@@ -42,28 +42,52 @@ pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
 pub const SPECTRUM_YIELDS_PA: [f64; 5] = [1e4, 3e4, 1e5, 3e5, 1e6];
 
 /// The general family of the hose wall (`hose_hysteresis` in any shape): a
-/// discrete Prandtl-Ishlinskii operator on each line's pressure. Element i
-/// is a hysteretic pressure of yield [`SPECTRUM_YIELDS_PA`]`[i]` (the Dahl
-/// element of the named form, without a stuck share) that adds the
-/// compliance `c_m3pp[i]` as far as it is engaged; the wall's hysteretic
-/// volume is the weighted sum of the elements' outputs. The weights, learned
-/// from the runs, shape the loop: narrow loops from small yields, wide ones
-/// from large.
+/// discrete Prandtl-Ishlinskii operator on each line's pressure, of both
+/// kinds. Element i is a hysteretic pressure of yield
+/// [`SPECTRUM_YIELDS_PA`]`[i]` (the Dahl element of the named form) with
+/// its engagement e_i, 0 right after a pressure reversal and 1 once the
+/// pressure has moved on by a few yields. It adds the compliance
+/// `c_m3pp[i]` as far as it is engaged (a play: a wall that gives only once
+/// it slips) and `stop_c_m3pp[i]` as far as it is not (a stop: a wall that
+/// gives right after a reversal and locks once the pressure has moved on,
+/// e.g. a braid slipping in its cover). The weights, learned from the runs,
+/// shape the loop: narrow loops from small yields, wide ones from large.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HysteresisSpectrum {
-    /// Compliance of each element when engaged, m^3/Pa (non-negative).
+    /// Compliance of each element when engaged (play), m^3/Pa (non-negative).
     pub c_m3pp: [f64; 5],
+    /// Compliance of each element while not engaged (stop), m^3/Pa
+    /// (non-negative; zero where absent).
+    #[serde(default)]
+    pub stop_c_m3pp: [f64; 5],
 }
 
 impl HysteresisSpectrum {
-    /// Element `i` as a Dahl element of the named form.
+    /// Plays only: the compliances `c_m3pp`, no stops.
+    pub fn plays(c_m3pp: [f64; 5]) -> Self {
+        Self {
+            c_m3pp,
+            stop_c_m3pp: [0.0; 5],
+        }
+    }
+
+    /// Element `i` as a Dahl element of the named form (its play's
+    /// compliance; the yield its hysteretic pressure follows).
     pub fn element(&self, i: usize) -> HoseHysteresis {
         HoseHysteresis {
             c_m3pp: self.c_m3pp[i],
             stuck_share: 0.0,
             yield_pa: SPECTRUM_YIELDS_PA[i],
         }
+    }
+
+    /// The compliance element `i` adds, m^3/Pa, at its hysteretic pressure
+    /// `z_pa` with the line pressure moving in the direction of `dp`: the
+    /// play's as far as it is engaged, the stop's as far as it is not.
+    pub fn compliance_m3pp(&self, i: usize, z_pa: f64, dp: f64) -> f64 {
+        let e = hysteresis_engagement(&self.element(i), z_pa, dp);
+        e * self.c_m3pp[i] + (1.0 - e) * self.stop_c_m3pp[i]
     }
 }
 
@@ -96,21 +120,28 @@ impl NamedEffect for HoseHysteresis {
 
 impl GeneralFamily for HysteresisSpectrum {
     const FORM: &'static str =
-        "general: a Prandtl-Ishlinskii spectrum of the hose wall (five yields, 10 kPa to 1 MPa)";
+        "general: a Prandtl-Ishlinskii spectrum of the hose wall (plays and stops at five yields, 10 kPa to 1 MPa)";
     const BOTH: &'static str = "the named form and the hysteresis spectrum exclude each other";
-    const REQUIREMENT: &'static str = "hose_spectrum: every c_m3pp must be >= 0 and at most 5e-11";
+    const REQUIREMENT: &'static str =
+        "hose_spectrum: every c_m3pp and stop_c_m3pp must be >= 0 and at most 5e-11";
     /// Every compliance within [0, VALID_SPAN times the named form's largest].
     fn family_valid(&self) -> bool {
         let most = VALID_SPAN * HoseHysteresis::PARAMS[0].max;
         self.c_m3pp
             .iter()
+            .chain(&self.stop_c_m3pp)
             .all(|c| c.is_finite() && (0.0..=most).contains(c))
     }
     fn param_map(&self) -> Vec<(String, f64)> {
-        SPECTRUM_YIELDS_PA
-            .iter()
-            .zip(self.c_m3pp)
-            .map(|(y, c)| (format!("c_m3pp_at_yield_{y:.0e}_pa"), c))
-            .collect()
+        let at = |kind: &str, c: [f64; 5]| {
+            SPECTRUM_YIELDS_PA
+                .iter()
+                .zip(c)
+                .map(|(y, c)| (format!("{kind}_at_yield_{y:.0e}_pa"), c))
+                .collect::<Vec<_>>()
+        };
+        let mut m = at("c_m3pp", self.c_m3pp);
+        m.extend(at("stop_c_m3pp", self.stop_c_m3pp));
+        m
     }
 }
