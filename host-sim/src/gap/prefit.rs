@@ -199,36 +199,71 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
     if nominal <= samples as f64 {
         return None;
     }
-    let search = EnvelopeSearch { runs, plant };
-    // A coarse log axis of masses from flat forces, then a finer one around
-    // the best from its forces.
-    let mut best = (nominal, 0.0, [0.0; K]);
-    for m in log_axis(MOTOR_MASS.lo, 1e3, 8) {
-        let (e, a) = search.knots(m, [MOTOR_FORCE.at(0.5); K]);
-        if e < best.0 {
-            best = (e, m, a);
+    let search = EnvelopeSearch {
+        runs,
+        plant,
+        ramp: None,
+    };
+    let (e, m, a) = search.fit(nominal, [MOTOR_FORCE.at(0.5); K])?;
+    // A ramp of the drive: each on a log axis under the found mass and
+    // forces (knot by knot again); the best one searched in full like the
+    // envelope without, and kept only where it lowers the error clearly.
+    let mut ramped: Option<(f64, f64)> = None;
+    for ramp in log_axis(RAMP_MPS2.0, RAMP_MPS2.1, RAMP_STEPS) {
+        let under = EnvelopeSearch {
+            ramp: Some(ramp),
+            ..search
+        };
+        let (er, _) = under.knots(m, a);
+        if ramped.is_none_or(|(best, _)| er < best) {
+            ramped = Some((er, ramp));
         }
     }
-    if best.1 == 0.0 {
-        return None;
-    }
-    let m0 = best.1;
-    for m in log_axis(m0 / 1.9, m0 * 1.9, 6) {
-        let (e, a) = search.knots(m, best.2);
-        if e < best.0 {
-            best = (e, m, a);
-        }
-    }
-    let (e, m, a) = search.polish(best);
-    Some((envelope(m, &a), e, nominal))
+    let with_ramp = ramped.and_then(|(_, ramp)| {
+        let under = EnvelopeSearch {
+            ramp: Some(ramp),
+            ..search
+        };
+        let (er, mr, ar) = under.fit(nominal, a)?;
+        // The ramp itself between its neighbours on the axis, the rest
+        // held, then the envelope polished under it.
+        let step = (RAMP_MPS2.1 / RAMP_MPS2.0).ln() / (RAMP_STEPS - 1) as f64;
+        let at_ln = |u: f64, stop: f64| {
+            EnvelopeSearch {
+                ramp: Some(u.exp()),
+                ..search
+            }
+            .error(mr, &ar, stop)
+        };
+        let (e_line, u) = golden_line(&at_ln, ramp.ln() - step, ramp.ln() + step, 5);
+        let ramp = if e_line < er { u.exp() } else { ramp };
+        let under = EnvelopeSearch {
+            ramp: Some(ramp),
+            ..search
+        };
+        let (er, mr, ar) = under.polish((under.error(mr, &ar, f64::INFINITY), mr, ar));
+        (er < (1.0 - RAMP_GAIN) * e).then(|| (er, envelope(mr, &ar, Some(ramp))))
+    });
+    Some(match with_ramp {
+        Some((er, env)) => (env, er, nominal),
+        None => (envelope(m, &a, None), e, nominal),
+    })
 }
+
+/// Ramps of the drive tried, m/s^2 (a log axis between): from a crawl to
+/// beyond what the nominal speed loop asks for a full-speed step.
+const RAMP_MPS2: (f64, f64) = (0.3, 30.0);
+/// Points of the ramps' log axis.
+const RAMP_STEPS: usize = 13;
+/// Share of the envelope's error a ramp must remove to be kept.
+const RAMP_GAIN: f64 = 0.2;
 
 /// Knots of the servo envelope.
 const K: usize = ENVELOPE_SPEEDS_MPS.len();
 
 /// The envelope of mass `m` and knot forces `a`, each knot capped by the one
 /// before (the envelope never rises with speed) and at least 0.
-fn envelope(m: f64, a: &[f64]) -> ServoEnvelope {
+fn envelope(m: f64, a: &[f64], ramp: Option<f64>) -> ServoEnvelope {
     let mut f = [a[0]; K];
     for k in 1..K {
         f[k] = a[k].clamp(0.0, f[k - 1]);
@@ -236,6 +271,7 @@ fn envelope(m: f64, a: &[f64]) -> ServoEnvelope {
     ServoEnvelope {
         mass_eq_kg: m,
         force_n: f,
+        accel_max_mps2: ramp,
     }
 }
 
@@ -279,18 +315,46 @@ fn golden_line(f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64,
 }
 
 /// The steps of [`servo_envelope`]'s search over the runs.
+#[derive(Clone, Copy)]
 struct EnvelopeSearch<'a> {
     /// The runs whose Xi the envelope explains.
     runs: &'a [Run],
     /// The nominal plant.
     plant: &'a Plant,
+    /// The drive's ramp the envelopes are tried with.
+    ramp: Option<f64>,
 }
 
 impl EnvelopeSearch<'_> {
+    /// The envelope search from the forces `a0`: a coarse log axis of
+    /// masses, then a finer one around the best from its forces, then the
+    /// polish; `None` where no mass explains Xi better than the nominal
+    /// servo (its error `nominal`).
+    fn fit(&self, nominal: f64, a0: [f64; K]) -> Option<(f64, f64, [f64; K])> {
+        let mut best = (nominal, 0.0, [0.0; K]);
+        for m in log_axis(MOTOR_MASS.lo, 1e3, 8) {
+            let (e, a) = self.knots(m, a0);
+            if e < best.0 {
+                best = (e, m, a);
+            }
+        }
+        if best.1 == 0.0 {
+            return None;
+        }
+        let m0 = best.1;
+        for m in log_axis(m0 / 1.9, m0 * 1.9, 6) {
+            let (e, a) = self.knots(m, best.2);
+            if e < best.0 {
+                best = (e, m, a);
+            }
+        }
+        Some(self.polish(best))
+    }
+
     /// Squared Xi error of the envelope (mass `m`, forces `a`), stopping
     /// early above `stop`; infinite for an invalid envelope.
     fn error(&self, m: f64, a: &[f64], stop: f64) -> f64 {
-        let s = envelope(m, a);
+        let s = envelope(m, a, self.ramp);
         if !s.is_valid() {
             return f64::INFINITY;
         }
@@ -427,6 +491,35 @@ mod tests {
         assert!((x[0] / 1200.0 - 1.0).abs() < 0.03, "{x:?}");
     }
 
+    /// A drive that ramps its speed target at 2 m/s^2 whatever the load
+    /// (a force at rest no load reaches): the envelope finds the ramp.
+    #[test]
+    fn learns_the_ramp_of_a_drive() {
+        let truth = ServoEnvelope {
+            mass_eq_kg: 100.0,
+            force_n: [5000.0; 6],
+            accel_max_mps2: Some(2.0),
+        };
+        let e = Effects {
+            servo_envelope: Some(truth),
+            ..Effects::NONE
+        };
+        let run = open_loop_run(
+            e,
+            3.0,
+            (
+                vec![0.3, 0.8, 1.3, 1.6, 2.1],
+                &[0.0, 0.1, 0.0, -0.05, 0.0, 0.02],
+            ),
+            (vec![0.1, 2.0], &[0.0, 800.0, 1400.0]),
+        );
+        let runs = std::slice::from_ref(&run);
+        let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
+        assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");
+        let ramp = env.accel_max_mps2.expect("a ramp");
+        assert!((ramp / 2.0 - 1.0).abs() < 0.05, "{env:?}");
+    }
+
     /// A torque-speed curve that the named form cannot take (the force
     /// falls with speed): the envelope finds the force at rest and the
     /// fall where the run motors under load, keeps the knots the run never
@@ -436,6 +529,7 @@ mod tests {
         let truth = ServoEnvelope {
             mass_eq_kg: 150.0,
             force_n: [1200.0, 1200.0, 1200.0, 900.0, 600.0, 300.0],
+            accel_max_mps2: None,
         };
         let e = Effects {
             servo_envelope: Some(truth),
@@ -474,6 +568,8 @@ mod tests {
         };
         assert!((crossing(&env) - crossing(&truth)).abs() < 2e-3, "{env:?}");
         assert!(env.is_valid());
+        // No ramp where the drive has none.
+        assert_eq!(env.accel_max_mps2, None, "{env:?}");
         // The nominal rig gives no envelope.
         let clean = open_loop_run(
             Effects::NONE,

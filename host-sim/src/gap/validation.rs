@@ -171,6 +171,7 @@ fn general_family_cases() -> Vec<Case> {
                 servo_envelope: Some(ServoEnvelope {
                     mass_eq_kg: 150.0,
                     force_n: [1100.0, 1100.0, 900.0, 600.0, 300.0, 0.0],
+                    accel_max_mps2: None,
                 }),
                 ..Effects::NONE
             },

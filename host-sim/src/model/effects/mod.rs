@@ -17,7 +17,7 @@
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
 //! | `motor_limit`, general family ([`ServoEnvelope`]) | the drive's force envelope over speed, learned from the encoder: the speed loop's force m a + F is clamped to +-A(abs(v)) while motoring (A piecewise linear over 0 ... 0.1 m/s, non-increasing: a torque-speed curve of any shape) and to +-A(0) while braking; no separate speed cap (A falling to 0 is one) | `mass_eq_kg`, `force_n` (A at the knots [`ENVELOPE_SPEEDS_MPS`]) |
-//! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa), each adding one compliance as far as it is engaged (a play) and another as far as it is not (a stop) | `c_m3pp`, `stop_c_m3pp` (five compliances each, learned) |
+//! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa, no stuck share), each adding its compliance as far as it is engaged | `c_m3pp` (five compliances, learned) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
 //! | `accumulator_thermal`, general family ([`GasRelaxation`]) | the gas spring relaxing over six time constants (0.1 ... 30 s): with u = ln(V0/Vg), ds_k/dt = (w_k u - s_k)/tau_k and P_abs = P0_abs exp(n u - sum s_k); the index after a step compression falls from n by the weights of the elements that have relaxed | `weights` (six, learned, non-negative, sum at most 1) |
@@ -750,6 +750,7 @@ mod tests {
         let s = ServoEnvelope {
             mass_eq_kg: 100.0,
             force_n: [1000.0, 1000.0, 800.0, 400.0, 0.0, 0.0],
+            accel_max_mps2: None,
         };
         assert!(s.is_valid());
         assert_eq!(s.available_n(0.0), 1000.0);
@@ -762,10 +763,20 @@ mod tests {
         // Small requests are met; at 80 mm/s nothing is left to push on.
         assert_eq!(s.accel(1.0, 0.05, 0.0), 1.0);
         assert!(s.accel(10.0, 0.08, 0.0).abs() < 1e-12);
+        // A ramp clamps what the loop asks for before the force does.
+        let ramped = ServoEnvelope {
+            accel_max_mps2: Some(2.0),
+            ..s
+        };
+        assert_eq!(ramped.accel(50.0, 0.05, 300.0), 2.0);
+        assert_eq!(ramped.accel(-50.0, 0.05, 300.0), -2.0);
+        assert_eq!(ramped.accel(1.0, 0.05, 0.0), 1.0);
+        assert!(ramped.accel(10.0, 0.08, 0.0).abs() < 1e-12);
         // A constant envelope is the named force limit without a speed cap.
         let flat = ServoEnvelope {
             mass_eq_kg: 100.0,
             force_n: [500.0; 6],
+            accel_max_mps2: None,
         };
         let m = MotorLimit {
             force_max_n: 500.0,
@@ -784,6 +795,7 @@ mod tests {
         e.servo_envelope = Some(ServoEnvelope {
             mass_eq_kg: 100.0,
             force_n: [500.0, 600.0, 0.0, 0.0, 0.0, 0.0],
+            accel_max_mps2: None,
         });
         assert!(e.validate().is_err());
         e.servo_envelope = Some(flat);

@@ -41,7 +41,9 @@ pub const ENVELOPE_SPEEDS_MPS: [f64; 6] = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10];
 /// the available force `A(abs(v))`, piecewise linear between the knots and
 /// flat beyond the last; while braking at most `A(0)`. A constant `A` is
 /// the named form's force limit, `A` falling to zero at some speed its speed
-/// cap, and any torque-speed curve lies in between.
+/// cap, and any torque-speed curve lies in between. A drive may also ramp
+/// its speed target (`accel_max_mps2`): the asked acceleration is then
+/// clamped to +-that before the force is, whatever the load.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ServoEnvelope {
@@ -49,6 +51,10 @@ pub struct ServoEnvelope {
     pub mass_eq_kg: f64,
     /// Available force at [`ENVELOPE_SPEEDS_MPS`], N (non-increasing).
     pub force_n: [f64; 6],
+    /// The drive's ramp: largest acceleration it asks for, m/s^2 (none
+    /// where absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_max_mps2: Option<f64>,
 }
 
 impl ServoEnvelope {
@@ -70,6 +76,10 @@ impl ServoEnvelope {
     /// speed `v_mps` against the hydraulic force `f_load_n` (positive
     /// opposing extension).
     pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
+        let a_mps2 = match self.accel_max_mps2 {
+            Some(ramp) => a_mps2.clamp(-ramp, ramp),
+            None => a_mps2,
+        };
         let f = self.mass_eq_kg * a_mps2 + f_load_n;
         let cap = if f * v_mps >= 0.0 {
             self.available_n(v_mps)
@@ -80,9 +90,11 @@ impl ServoEnvelope {
     }
 
     /// Whether the envelope is usable: finite, a positive mass and force at
-    /// rest, forces non-negative and non-increasing with speed.
+    /// rest, forces non-negative and non-increasing with speed, a ramp (if
+    /// any) positive.
     pub fn is_valid(&self) -> bool {
-        self.mass_eq_kg.is_finite()
+        self.accel_max_mps2.is_none_or(|a| a.is_finite() && a > 0.0)
+            && self.mass_eq_kg.is_finite()
             && self.mass_eq_kg > 0.0
             && self.force_n[0].is_finite()
             && self.force_n[0] > 0.0
@@ -152,7 +164,7 @@ impl GeneralFamily for ServoEnvelope {
     const BOTH: &'static str = "the named form and the servo envelope exclude each other";
     const REQUIREMENT: &'static str =
         "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
-         and non-increasing with speed";
+         and non-increasing with speed, accel_max_mps2 (if given) > 0";
     /// Valid, and its force at rest and mass within VALID_SPAN times the
     /// named form's largest.
     fn family_valid(&self) -> bool {
@@ -164,6 +176,9 @@ impl GeneralFamily for ServoEnvelope {
         let mut m = vec![("mass_eq_kg".to_string(), self.mass_eq_kg)];
         for (v, f) in ENVELOPE_SPEEDS_MPS.iter().zip(self.force_n) {
             m.push((format!("force_n_at_{v:.2}_mps"), f));
+        }
+        if let Some(a) = self.accel_max_mps2 {
+            m.push(("accel_max_mps2".to_string(), a));
         }
         m
     }
