@@ -206,25 +206,26 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
     };
     let (e, m, a) = search.fit(nominal, [MOTOR_FORCE.at(0.5); K])?;
     // A ramp of the drive: each on a log axis under the found mass and
-    // forces (knot by knot again); the best one searched in full like the
-    // envelope without, and kept only where it lowers the error clearly.
-    let mut ramped: Option<(f64, f64)> = None;
+    // forces (knot by knot again); under the best one the masses around
+    // and the ramp between its neighbours, kept only where it lowers the
+    // error clearly.
+    let mut ramped: Option<(f64, f64, [f64; K])> = None;
     for ramp in log_axis(RAMP_MPS2.0, RAMP_MPS2.1, RAMP_STEPS) {
         let under = EnvelopeSearch {
             ramp: Some(ramp),
             ..search
         };
-        let (er, _) = under.knots(m, a);
-        if ramped.is_none_or(|(best, _)| er < best) {
-            ramped = Some((er, ramp));
+        let (er, ar) = under.knots(m, a);
+        if ramped.is_none_or(|(best, _, _)| er < best) {
+            ramped = Some((er, ramp, ar));
         }
     }
-    let with_ramp = ramped.and_then(|(_, ramp)| {
+    let with_ramp = ramped.and_then(|(er, ramp, ar)| {
         let under = EnvelopeSearch {
             ramp: Some(ramp),
             ..search
         };
-        let (er, mr, ar) = under.fit(nominal, a)?;
+        let (er, mr, ar) = under.around(m, ar, er);
         // The ramp itself between its neighbours on the axis, the rest
         // held, then the envelope polished under it.
         let step = (RAMP_MPS2.1 / RAMP_MPS2.0).ln() / (RAMP_STEPS - 1) as f64;
@@ -254,7 +255,7 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
 /// beyond what the nominal speed loop asks for a full-speed step.
 const RAMP_MPS2: (f64, f64) = (0.3, 30.0);
 /// Points of the ramps' log axis.
-const RAMP_STEPS: usize = 13;
+const RAMP_STEPS: usize = 7;
 /// Share of the envelope's error a ramp must remove to be kept.
 const RAMP_GAIN: f64 = 0.2;
 
@@ -341,14 +342,21 @@ impl EnvelopeSearch<'_> {
         if best.1 == 0.0 {
             return None;
         }
-        let m0 = best.1;
+        Some(self.around(best.1, best.2, best.0))
+    }
+
+    /// The finer log axis of masses around `m0` from the forces `a0`
+    /// (whose error is `e0`), each from the best forces so far, then the
+    /// polish.
+    fn around(&self, m0: f64, a0: [f64; K], e0: f64) -> (f64, f64, [f64; K]) {
+        let mut best = (e0, m0, a0);
         for m in log_axis(m0 / 1.9, m0 * 1.9, 6) {
             let (e, a) = self.knots(m, best.2);
             if e < best.0 {
                 best = (e, m, a);
             }
         }
-        Some(self.polish(best))
+        self.polish(best)
     }
 
     /// Squared Xi error of the envelope (mass `m`, forces `a`), stopping
