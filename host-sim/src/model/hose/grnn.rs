@@ -15,7 +15,8 @@
 //! non-positive slope, is replaced by bisection; the iteration starts at the
 //! warm start (clamped into the bracket) and stops when the step is below
 //! the hose's tolerance ([`NEWTON_STEP_TOL_PAPS`] = 1e-3 Pa/s static,
-//! [`MEMORY_NEWTON_TOL_PAPS`] memory), after at most 30 iterations.
+//! [`MEMORY_NEWTON_TOL_PAPS`] memory) or rounds to zero, after at most 30
+//! iterations.
 //!
 //! Evaluation: the static map uses [`FastGrnn`] (table + truncated sum), the
 //! memory map [`LocalGrnn`] (a cached local list of samples, one
@@ -411,6 +412,16 @@ impl GrnnHose {
                 lo = x;
             }
             let newton = x - f / fp;
+            // A Newton step that rounds to zero ends the iteration at x (x has
+            // just become an end of the bracket, so the test below would
+            // otherwise send it to bisection, away from the root).
+            if fp > 0.0 && newton == x {
+                return Solve {
+                    dp_paps: x,
+                    iterations: it,
+                    df_ddp_m3ppa: fp,
+                };
+            }
             let next = if fp > 0.0 && newton > lo && newton < hi {
                 newton
             } else {
