@@ -467,6 +467,7 @@ impl Plant {
                 t.kernels += s.kernels;
                 t.distances += s.distances;
                 t.rebuilds += s.rebuilds;
+                t.visited += s.visited;
             }
             t
         })

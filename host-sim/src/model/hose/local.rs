@@ -4,21 +4,23 @@
 //! In a simulation the hose's query u (z-scored [P, dP/dt, P - P_f1, P - P_f2])
 //! moves very little from one evaluation to the next (Newton iterations, RK
 //! stages, steps of 2e-4 s). [`LocalCache`] keeps the training samples within a
-//! radius R of a centre c, in the order of the training set. A query u within
-//! distance delta < R of c is served from the list when
+//! radius R of a centre c, in their storage order (the cells of a grid over
+//! [`GRID_DIMS`], training-set order within a cell). A query u within distance
+//! delta < R of c is served from the list when
 //!
 //!   d_r^2 + 2 sigma^2 T <= (R - delta)^2,   d_r = distance to the nearest sample in the list,
 //!
 //! because every sample outside the list is farther than R - delta from u: the
 //! nearest sample is in the list, and so is every sample with
-//! d_i^2 <= d_r^2 + 2 sigma^2 T. Otherwise the list is rebuilt around u (one pass
-//! over the training set) with R = sqrt(d_r^2 + 2 sigma^2 T) + [`LIST_MARGIN_Z`].
+//! d_i^2 <= d_r^2 + 2 sigma^2 T. Otherwise the list is rebuilt around u with
+//! R = sqrt(d_r^2 + 2 sigma^2 T) + [`LIST_MARGIN_Z`], visiting only the grid
+//! cells that can hold its samples (`LocalGrnn::rebuild`).
 //!
 //! **What is summed** depends only on u, never on the cache: with weights relative
 //! to the nearest sample, w_i = n_i exp(-(d_i^2 - d_r^2) / (2 sigma^2)) (n_i the
 //! sample's multiplicity, >= 1), the samples of the shells
 //! d_i^2 - d_r^2 <= 2 sigma^2 t_l for t_l in [`SHELLS`] and finally t = T are
-//! summed in training-set order, shell after shell, stopping after shell l as soon
+//! summed in storage order, shell after shell, stopping after shell l as soon
 //! as C_l e^-t_l <= (eps / 2) D_I, where D_I is the weight summed so far and C_l
 //! the multiplicity of the samples between shell l and T (counted without an
 //! exp). A run is therefore bit-identical whatever the cache's history (a fresh
@@ -48,6 +50,13 @@ pub const LOCAL_DIM: usize = 4;
 /// a query needs: a query may move this far before the list is rebuilt.
 pub const LIST_MARGIN_Z: f64 = 0.1;
 
+/// The inputs by which the training samples are binned for a rebuild of the
+/// list (dP/dt, P - P_f1, P - P_f2: indices into u).
+pub const GRID_DIMS: [usize; 3] = [1, 2, 3];
+
+/// Cell width of that grid, z units.
+pub const GRID_CELL_Z: f64 = 0.25;
+
 /// Intermediate shells t_l (units of 2 sigma^2 in squared distance beyond the
 /// nearest sample) at which the sum may stop (module documentation).
 pub const SHELLS: [f64; 2] = [10.0, 13.0];
@@ -65,7 +74,10 @@ pub struct LocalGrnn {
     shells: Vec<f64>,
     /// e^-t_l per shell.
     shell_weight: Vec<f64>,
-    /// Scaled inputs, one column per input (training-set order).
+    /// The samples binned on [`GRID_DIMS`].
+    grid: Grid,
+    /// Scaled inputs, one column per input (grid-cell order, then
+    /// training-set order).
     x: [Vec<f64>; LOCAL_DIM],
     y: Vec<f64>,
     n: Vec<f64>,
@@ -92,8 +104,10 @@ pub struct LocalCache {
     /// Scratch of the sum: the selected samples' indices and their weights.
     sel: Vec<u32>,
     w: Vec<f64>,
-    /// Scratch of the rebuild: squared distances to every training sample.
+    /// Scratch of the rebuild: the visited samples' squared distances and
+    /// indices.
     all_d2: Vec<f64>,
+    all_i: Vec<u32>,
     stats: LocalStats,
 }
 
@@ -106,8 +120,10 @@ pub struct LocalStats {
     pub kernels: u64,
     /// Squared distances computed on the list (cheap, no exp).
     pub distances: u64,
-    /// Rebuilds of the list (one pass over the training set each).
+    /// Rebuilds of the list.
     pub rebuilds: u64,
+    /// Training samples visited by the rebuilds (a distance each).
+    pub visited: u64,
 }
 
 impl LocalCache {
@@ -162,6 +178,13 @@ impl LocalGrnn {
             .collect();
         shells.push(two_s2 * t);
         let xn = net.scaled_inputs();
+        let col =
+            |k: usize| -> Vec<f64> { xn.iter().skip(k).step_by(LOCAL_DIM).copied().collect() };
+        let (grid, order) = Grid::new(&core::array::from_fn(|g| col(GRID_DIMS[g])));
+        let x = core::array::from_fn(|k| {
+            let c = col(k);
+            order.iter().map(|&i| c[i]).collect()
+        });
         let (y_min, y_max) = net.output_range();
         Self {
             sigma,
@@ -170,9 +193,10 @@ impl LocalGrnn {
             s2t: two_s2 * t,
             shells,
             shell_weight,
-            x: core::array::from_fn(|k| xn.iter().skip(k).step_by(LOCAL_DIM).copied().collect()),
-            y: net.outputs().to_vec(),
-            n: net.counts().to_vec(),
+            grid,
+            x,
+            y: order.iter().map(|&i| net.outputs()[i]).collect(),
+            n: order.iter().map(|&i| net.counts()[i]).collect(),
             total,
             y_min,
             y_max,
@@ -224,21 +248,41 @@ impl LocalGrnn {
         self.sum(u, m, cache)
     }
 
-    /// Rebuild the list around `u`: every sample within sqrt(d_r^2 + 2 sigma^2 T)
-    /// + [`LIST_MARGIN_Z`], in training-set order.
+    /// Rebuild the list around `u`: every sample within R = sqrt(d_r^2 + 2
+    /// sigma^2 T) plus [`LIST_MARGIN_Z`], in storage order. Only the grid cells
+    /// within b = sqrt(m_ub + 2 sigma^2 T) plus [`LIST_MARGIN_Z`] of `u` in
+    /// [`GRID_DIMS`] are visited, m_ub >= d_r^2 being the squared distance to
+    /// the old list's nearest sample (all cells if there is none): the nearest
+    /// sample is within sqrt(m_ub) < b, so it is found, and then R <= b.
     fn rebuild(&self, u: &[f64; LOCAL_DIM], c: &mut LocalCache) {
         c.stats.rebuilds += 1;
-        let n = self.y.len();
-        c.all_d2.resize(n, 0.0);
-        let [x0, x1, x2, x3] = &self.x;
+        let dist2 = |x: &[Vec<f64>; LOCAL_DIM], i: usize| {
+            let (a, b, e, f) = (
+                u[0] - x[0][i],
+                u[1] - x[1][i],
+                u[2] - x[2][i],
+                u[3] - x[3][i],
+            );
+            a * a + b * b + e * e + f * f
+        };
+        let m_ub = if c.valid && c.near < c.y.len() {
+            dist2(&c.x, c.near)
+        } else {
+            f64::INFINITY
+        };
+        let b = (m_ub + self.s2t).sqrt() + LIST_MARGIN_Z;
+        c.all_d2.clear();
+        c.all_i.clear();
         let mut m = f64::INFINITY;
-        for (i, d2) in c.all_d2.iter_mut().enumerate() {
-            let (a, b, e, f) = (u[0] - x0[i], u[1] - x1[i], u[2] - x2[i], u[3] - x3[i]);
-            *d2 = a * a + b * b + e * e + f * f;
-            if *d2 < m {
-                m = *d2;
+        self.grid.visit(u, b, |range| {
+            for i in range {
+                let d2 = dist2(&self.x, i);
+                m = m.min(d2);
+                c.all_d2.push(d2);
+                c.all_i.push(i as u32);
             }
-        }
+        });
+        c.stats.visited += c.all_i.len() as u64;
         let r = (m + self.s2t).sqrt() + LIST_MARGIN_Z;
         let r2 = r * r;
         for col in &mut c.x {
@@ -247,8 +291,9 @@ impl LocalGrnn {
         c.y.clear();
         c.n.clear();
         c.near = usize::MAX;
-        for (i, &d2) in c.all_d2.iter().enumerate() {
+        for (&d2, &i) in c.all_d2.iter().zip(&c.all_i) {
             if d2 <= r2 {
+                let i = i as usize;
                 if d2 <= m && c.near == usize::MAX {
                     c.near = c.y.len();
                 }
@@ -385,6 +430,77 @@ impl LocalGrnn {
     /// Number of samples of the total multiplicity N of the bound.
     pub fn total_count(&self) -> f64 {
         self.total
+    }
+}
+
+/// The training samples binned on a uniform grid over [`GRID_DIMS`], cells
+/// numbered row-major; the samples are stored in cell order (training-set order
+/// within a cell), so that the cells of a box, visited in their order, give the
+/// samples in storage order.
+#[derive(Clone, Debug, PartialEq)]
+struct Grid {
+    lo: [f64; 3],
+    n: [usize; 3],
+    /// The samples of cell k are start[k]..start[k + 1].
+    start: Vec<u32>,
+}
+
+impl Grid {
+    /// The grid over the given columns (one per binned input) and the storage
+    /// order of the samples (training-set indices).
+    fn new(cols: &[Vec<f64>; 3]) -> (Self, Vec<usize>) {
+        let len = cols[0].len();
+        let lo = cols
+            .each_ref()
+            .map(|c| c.iter().copied().fold(f64::INFINITY, f64::min));
+        let hi = cols
+            .each_ref()
+            .map(|c| c.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        let n: [usize; 3] = core::array::from_fn(|g| ((hi[g] - lo[g]) / GRID_CELL_Z) as usize + 1);
+        let mut grid = Self {
+            lo,
+            n,
+            start: Vec::new(),
+        };
+        let key = |i: usize| -> usize {
+            let c: [usize; 3] = core::array::from_fn(|g| grid.cell(g, cols[g][i]));
+            (c[0] * n[1] + c[1]) * n[2] + c[2]
+        };
+        let keys: Vec<usize> = (0..len).map(key).collect();
+        let mut order: Vec<usize> = (0..len).collect();
+        order.sort_by_key(|&i| keys[i]);
+        let mut start = vec![0u32; n[0] * n[1] * n[2] + 1];
+        for &k in &keys {
+            start[k + 1] += 1;
+        }
+        for k in 1..start.len() {
+            start[k] += start[k - 1];
+        }
+        grid.start = start;
+        (grid, order)
+    }
+
+    /// The cell index of coordinate `v` in binned input `g`, clamped to the grid.
+    #[inline]
+    fn cell(&self, g: usize, v: f64) -> usize {
+        ((v - self.lo[g]) / GRID_CELL_Z).clamp(0.0, (self.n[g] - 1) as f64) as usize
+    }
+
+    /// Call `f` with the storage ranges of the cells that meet the box of
+    /// half-width `b` around `u` (in the binned inputs), in storage order.
+    #[inline]
+    fn visit(&self, u: &[f64; LOCAL_DIM], b: f64, mut f: impl FnMut(core::ops::Range<usize>)) {
+        let lo: [usize; 3] = core::array::from_fn(|g| self.cell(g, u[GRID_DIMS[g]] - b));
+        let hi: [usize; 3] = core::array::from_fn(|g| self.cell(g, u[GRID_DIMS[g]] + b));
+        for i0 in lo[0]..=hi[0] {
+            for i1 in lo[1]..=hi[1] {
+                let row = (i0 * self.n[1] + i1) * self.n[2];
+                let (a, z) = (self.start[row + lo[2]], self.start[row + hi[2] + 1]);
+                if a < z {
+                    f(a as usize..z as usize);
+                }
+            }
+        }
     }
 }
 
