@@ -243,3 +243,80 @@ fn memory_local_within_bound_of_direct_sum() {
         );
     }
 }
+
+/// The plant's evaluator with Taylor steps ([`LocalCache::with_taylor`])
+/// against the direct sum of the same network, at two bounds: along walks
+/// through the data of steps from 1e-6 to 1e-2 (log-uniform, in units of each
+/// input's spread), so that queries are served by steps near and far from
+/// their anchor and beyond the largest step allowed, with jumps to run points
+/// and far points. Every value is within the provable bound (the steps'
+/// remainder alone is checked against its own, much tighter bound in
+/// `local.rs`'s unit test); most queries are steps; after `forget` the next
+/// one is summed, the same to the bit as through a fresh cache.
+#[test]
+fn memory_taylor_steps_within_bound_of_direct_sum() {
+    let d = DynamicData::shipped();
+    let runs: Vec<_> = d.runs.iter().collect();
+    let m = MemoryGrnn::fit_merged(&runs, [0.01, 0.3], 0.1, 2, 0.05).unwrap();
+    let f = features(&d.runs[0], [0.01, 0.3]);
+    let rows = f.len() / MEMORY_DIM;
+    let std = m.net.scaler().std.clone();
+    for eps in [1e-3, 1e-6] {
+        let local = LocalGrnn::new(&m.net, eps);
+        let bound = local.error_bound();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+        let mut cache = LocalCache::with_taylor();
+        let (mut worst_step, mut worst_exact) = (0.0f64, 0.0f64);
+        let mut x = [0.0; MEMORY_DIM];
+        for i in 0..6000 {
+            if i % 200 == 199 {
+                x = [
+                    rng.random_range(-5.0..10.0),
+                    rng.random_range(-2e3..2e3),
+                    rng.random_range(-5.0..5.0),
+                    rng.random_range(-5.0..5.0),
+                ];
+            } else if i % 200 == 0 {
+                let j = rng.random_range(0..rows);
+                x.copy_from_slice(&f[j * MEMORY_DIM..(j + 1) * MEMORY_DIM]);
+            } else {
+                let size = 10f64.powf(rng.random_range(-6.0..-2.0));
+                for (k, w) in [0.3, 1.0, 0.3, 0.3].iter().enumerate() {
+                    x[k] += size * w * std[k] * rng.random_range(-1.0..1.0);
+                }
+            }
+            let u4 = m.net.scale_input(&x);
+            let u: [f64; MEMORY_DIM] = core::array::from_fn(|k| u4[k]);
+            let before = cache.stats().taylor;
+            let e = local.eval_z(&u, &mut cache);
+            let err = (e.y - m.net.predict(&x)).abs();
+            assert!(err <= bound, "eps {eps:e}, query {i}: {err} > {bound}");
+            if cache.stats().taylor > before {
+                worst_step = worst_step.max(err);
+            } else {
+                worst_exact = worst_exact.max(err);
+            }
+            if i % 500 == 250 {
+                // Forgotten: the next query is summed, as through a fresh cache.
+                cache.forget();
+                let t = cache.stats().taylor;
+                let a = local.eval_z(&u, &mut cache);
+                let b = local.eval_z(&u, &mut LocalCache::with_taylor());
+                assert_eq!(cache.stats().taylor, t);
+                assert_eq!(
+                    (a.y.to_bits(), a.dy_du1.to_bits()),
+                    (b.y.to_bits(), b.dy_du1.to_bits())
+                );
+            }
+        }
+        let s = cache.stats();
+        let share = s.taylor as f64 / s.evals as f64;
+        println!(
+            "eps {eps:e}: bound {bound:.3e} mm^3/s; worst |value - direct| {worst_step:.3e} (Taylor \
+             steps), {worst_exact:.3e} (summed); {:.1} % of {} evaluations were steps",
+            100.0 * share,
+            s.evals
+        );
+        assert!(share > 0.5, "steps {share}");
+    }
+}

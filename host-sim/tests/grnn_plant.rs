@@ -229,24 +229,27 @@ fn openloop_xo(plant: &Plant) -> Vec<f64> {
 
 /// The memory plant's solve (Newton to [`MEMORY_NEWTON_TOL_PAPS`] from a
 /// predicted start) against the former one (to [`NEWTON_STEP_TOL_PAPS`] from the
-/// last solution), the same evaluator, open loop (2 s of `openloop`): Xo within
-/// 1e-6 mm (measured 2.7e-9 mm; closed loop on stepload 8.6e-9 mm, against
-/// the evaluator's own 7.2e-6 mm from a tight one, next test) with fewer GRNN
-/// evaluations.
+/// last solution), the same evaluator with every evaluation summed (no Taylor
+/// steps, so that only the solve differs), open loop (2 s of `openloop`): Xo
+/// within 1e-6 mm (measured 8.9e-11 mm, against the evaluator's own 3.7e-6 mm
+/// from a tight one, next test) with fewer GRNN evaluations.
 #[test]
 fn memory_plant_solve_matches_tight_solve() {
     let m = GrnnHose::shipped_memory_grnn();
-    let shipped = Plant::new(PlantParams::NOMINAL, HoseModel::GrnnMemory);
-    let hose = shipped.grnn_hose().unwrap();
+    let hose = Plant::new(PlantParams::NOMINAL, HoseModel::GrnnMemory)
+        .grnn_hose()
+        .unwrap()
+        .clone();
     assert_eq!(hose.newton_tol_paps(), MEMORY_NEWTON_TOL_PAPS);
-    assert!(hose.predicts_warm_start());
-    let former = Plant::with_grnn_hose(
-        PlantParams::NOMINAL,
-        Arc::new(
-            GrnnHose::from_memory(&m, "former solve")
-                .unwrap()
-                .with_newton(NEWTON_STEP_TOL_PAPS, false),
-        ),
+    assert!(hose.predicts_warm_start() && hose.taylor_steps());
+    let summed = |h: GrnnHose| {
+        Plant::with_grnn_hose(PlantParams::NOMINAL, Arc::new(h.with_taylor_steps(false)))
+    };
+    let shipped = summed(GrnnHose::clone(&hose));
+    let former = summed(
+        GrnnHose::from_memory(&m, "former solve")
+            .unwrap()
+            .with_newton(NEWTON_STEP_TOL_PAPS, false),
     );
     let a = openloop_xo(&shipped);
     let b = openloop_xo(&former);
@@ -268,11 +271,14 @@ fn memory_plant_solve_matches_tight_solve() {
 /// The memory plant against references, open loop (the first 2 s of
 /// `openloop`, stepped here): a plant whose hose is evaluated within 1e-9 of the
 /// output range (a stand-in for the direct sum, 1e6 times tighter than the
-/// shipped 1e-3) and solved to 1e-3 Pa/s moves Xo by less than 2e-5 mm
-/// (measured 3.7e-6 mm; a list accepted without the radius the sum needs gave
-/// 6.9e-5 mm), and a clone of the shipped plant (fresh caches) gives the
-/// bit-identical trajectory. That the values do not depend on the cache's
-/// history is checked query by query in `grnn_fast.rs`.
+/// shipped 1e-3), every evaluation summed, and solved to 1e-3 Pa/s moves Xo by
+/// less than 2e-5 mm (measured 1.9e-6 mm; 3.7e-6 mm with every evaluation of
+/// the shipped plant summed; a list accepted without the radius the sum needs
+/// gave 6.9e-5 mm, Taylor steps of the first order that used the whole bound
+/// 6.6e-5 mm), and a run of a clone of the shipped plant after a run of its
+/// own (the caches copied, their anchors forgotten at the initial state) is
+/// the bit-identical trajectory. That the summed values do not depend on the
+/// cache's history is checked query by query in `grnn_fast.rs`.
 #[test]
 fn memory_plant_matches_tight_reference() {
     let m = GrnnHose::shipped_memory_grnn();
@@ -282,33 +288,63 @@ fn memory_plant_matches_tight_reference() {
         Arc::new(
             GrnnHose::from_memory_eps(&m, 1e-9, "reference")
                 .unwrap()
-                .with_newton(NEWTON_STEP_TOL_PAPS, false),
+                .with_newton(NEWTON_STEP_TOL_PAPS, false)
+                .with_taylor_steps(false),
         ),
     );
     let run = openloop_xo;
     let a = run(&shipped);
     let stats = shipped.grnn_eval_stats().unwrap();
     let b = run(&shipped.clone());
-    assert_eq!(a, b, "the evaluation does not depend on the caches");
+    assert_eq!(a, b, "a run does not depend on the caches' history");
     let r = run(&tight);
     let worst = max_abs_diff(&a, &r);
     println!(
-        "openloop 2 s: max |dXo| = {:.3e} mm against eps 1e-9; per step {:.1} evaluations, \
-         {:.0} kernels, {:.4} rebuilds",
+        "openloop 2 s: max |dXo| = {:.3e} mm against eps 1e-9; per step {:.1} evaluations \
+         ({:.1} % Taylor steps), {:.0} kernels, {:.4} rebuilds",
         worst * 1e3,
         stats.evals as f64 / a.len() as f64,
+        100.0 * stats.taylor as f64 / stats.evals as f64,
         stats.kernels as f64 / a.len() as f64,
         stats.rebuilds as f64 / a.len() as f64
     );
     assert!(worst < 2e-8, "max |dXo| {worst} m");
+    assert!(stats.taylor > stats.evals / 2, "{stats:?}");
+}
+
+/// A clone of the memory plant taken in the middle of a run carries its
+/// caches (list and Taylor anchor), so it continues bit for bit as the
+/// original does (1 s of `openloop`, then 0.2 s on each).
+#[test]
+fn memory_plant_clone_continues_identically() {
+    let plant = Plant::new(PlantParams::NOMINAL, HoseModel::GrnnMemory);
+    let sc = Scenario::by_name("openloop").unwrap();
+    let dt = dt_for(HoseModel::GrnnMemory);
+    let step = |p: &Plant, x: &mut State, from: u64, to: u64| {
+        for k in from..to {
+            let t = tick_time_s(k, dt);
+            p.step(x, sc.v_cmd_mps(t).unwrap(), sc.load_n(t), dt);
+        }
+    };
+    let mut x = plant.initial_state(sc.load_n(0.0));
+    step(&plant, &mut x, 0, 5000);
+    let copy = plant.clone();
+    let mut y = x;
+    step(&plant, &mut x, 5000, 6000);
+    step(&copy, &mut y, 5000, 6000);
+    assert!(copy.grnn_eval_stats().unwrap().taylor > 0);
+    assert_eq!(x, y);
 }
 
 /// Closed loop (MPC-ESO, stepload, 10 s): the shipped memory plant against the
-/// tight reference (eps 1e-9) and the former evaluator (grid-binned
-/// `Truncated`, eps 1e-3), both solved to 1e-3 Pa/s from the last solution:
-/// Xo traces within 5e-5 mm (measured 7.2e-6 mm), the 800 N deviation within
-/// 2e-5 mm. About 10 s in release: `cargo test --release -p host-sim --test
-/// grnn_plant -- --ignored`.
+/// tight reference (eps 1e-9, every evaluation summed) and the former
+/// evaluator (grid-binned `Truncated`, eps 1e-3), both solved to 1e-3 Pa/s
+/// from the last solution, and against itself with every evaluation summed
+/// (no Taylor steps: the plant before them): Xo traces within 5e-5 mm
+/// (measured 7.8e-6 mm against the first two, 1.2e-5 mm against the last),
+/// the 800 N deviation within 2e-5 mm (1.940520 mm; 1.940521 mm tight,
+/// 1.940518 mm summed). About 10 s in release: `cargo test --release -p
+/// host-sim --test grnn_plant -- --ignored`.
 #[test]
 #[ignore]
 fn memory_plant_closed_loop_matches_references() {
@@ -321,11 +357,27 @@ fn memory_plant_closed_loop_matches_references() {
             Arc::new(h.with_newton(NEWTON_STEP_TOL_PAPS, false)),
         )
     };
-    let tight = hose(GrnnHose::from_memory_eps(&m, 1e-9, "reference").unwrap());
+    let tight = hose(
+        GrnnHose::from_memory_eps(&m, 1e-9, "reference")
+            .unwrap()
+            .with_taylor_steps(false),
+    );
     let former = hose(GrnnHose::from_memory_truncated(&m, "former").unwrap());
+    let summed = Plant::with_grnn_hose(
+        PlantParams::NOMINAL,
+        Arc::new(
+            GrnnHose::from_memory(&m, "every evaluation summed")
+                .unwrap()
+                .with_taylor_steps(false),
+        ),
+    );
     let a = stepload_trace(shipped, dt).unwrap();
     let da = load_deviation("grnn-memory", dt, &a);
-    for (name, plant) in [("eps 1e-9", tight), ("former Truncated", former)] {
+    for (name, plant) in [
+        ("eps 1e-9", tight),
+        ("former Truncated", former),
+        ("every evaluation summed", summed),
+    ] {
         let b = stepload_trace(plant, dt).unwrap();
         let worst = a
             .rows

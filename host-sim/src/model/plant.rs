@@ -220,8 +220,11 @@ impl HoseModel {
 /// stepped by two threads at once (give each thread its own clone).
 ///
 /// A memory hose also keeps one [`LocalCache`] per line (its evaluator's local
-/// sample list); the values do not depend on it, so only its counters are reset
-/// and a clone starts with an empty one.
+/// sample list and, with [`GrnnHose::taylor_steps`], the last exact evaluation
+/// from which later ones may be Taylor steps, within the evaluator's
+/// bound). [`Plant::initial_state`] drops that anchor and resets the counters
+/// (the list is kept: the values do not depend on it); a clone carries a copy
+/// of the caches, so it continues exactly as the original would.
 struct GrnnLines {
     hose: Arc<GrnnHose>,
     /// Last solution per line, f64 bits.
@@ -241,7 +244,15 @@ struct GrnnLines {
 
 impl GrnnLines {
     fn new(hose: Arc<GrnnHose>) -> Self {
+        let cache = || {
+            Mutex::new(if hose.taylor_steps() {
+                LocalCache::with_taylor()
+            } else {
+                LocalCache::new()
+            })
+        };
         Self {
+            cache: [cache(), cache()],
             hose,
             warm: [AtomicU64::new(0), AtomicU64::new(0)],
             last_q: [AtomicU64::new(0), AtomicU64::new(0)],
@@ -250,7 +261,6 @@ impl GrnnLines {
                 AtomicU64::new(f64::NAN.to_bits()),
                 AtomicU64::new(f64::NAN.to_bits()),
             ],
-            cache: Default::default(),
             solves: AtomicU64::new(0),
             iterations: AtomicU64::new(0),
         }
@@ -266,7 +276,9 @@ impl GrnnLines {
         self.solves.store(0, Ordering::Relaxed);
         self.iterations.store(0, Ordering::Relaxed);
         for c in &self.cache {
-            c.lock().unwrap_or_else(|e| e.into_inner()).reset_stats();
+            let mut c = c.lock().unwrap_or_else(|e| e.into_inner());
+            c.reset_stats();
+            c.forget();
         }
     }
 }
@@ -311,6 +323,11 @@ impl Clone for GrnnLines {
             for (d, s) in d.iter().zip(s) {
                 d.store(s.load(Ordering::Relaxed), Ordering::Relaxed);
             }
+        }
+        for (d, s) in c.cache.iter().zip(&self.cache) {
+            let mut d = d.lock().unwrap_or_else(|e| e.into_inner());
+            *d = s.lock().unwrap_or_else(|e| e.into_inner()).clone();
+            d.reset_stats();
         }
         c
     }
@@ -467,6 +484,7 @@ impl Plant {
                 t.kernels += s.kernels;
                 t.distances += s.distances;
                 t.rebuilds += s.rebuilds;
+                t.taylor += s.taylor;
                 t.visited += s.visited;
             }
             t

@@ -20,9 +20,11 @@
 //!
 //! Evaluation: the static map uses [`FastGrnn`] (table + truncated sum), the
 //! memory map [`LocalGrnn`] (a cached local list of samples, one
-//! [`LocalCache`] per line: [`GrnnHose::solve_dp_paps_cached`]); both within a
-//! stated bound of the direct sum. [`GrnnHose::from_memory_truncated`] keeps the
-//! memory map's former evaluator ([`Truncated`], grid-binned) for comparisons.
+//! [`LocalCache`] per line: [`GrnnHose::solve_dp_paps_cached`]; in the plant
+//! mostly Taylor steps from the line's last exact evaluation,
+//! [`GrnnHose::taylor_steps`]); both within a stated bound of the direct sum.
+//! [`GrnnHose::from_memory_truncated`] keeps the memory map's former evaluator
+//! ([`Truncated`], grid-binned) for comparisons.
 
 use std::sync::{Arc, OnceLock};
 
@@ -116,6 +118,7 @@ pub struct GrnnHose {
     bound: f64,
     newton_tol_paps: f64,
     predict_warm: bool,
+    taylor_steps: bool,
     description: String,
 }
 
@@ -152,6 +155,7 @@ impl GrnnHose {
             g_max,
             newton_tol_paps: NEWTON_STEP_TOL_PAPS,
             predict_warm: false,
+            taylor_steps: false,
             description: description.into(),
         })
     }
@@ -180,9 +184,9 @@ impl GrnnHose {
     }
 
     /// A memory hose with the former evaluator, [`Truncated`] (grid-binned, bound
-    /// [`MEMORY_TRUNC_EPS`] of the range): the same model, about 7 times slower
-    /// in the closed-loop plant with the same solve (`host-sim bench`); kept for
-    /// side-by-side comparisons (the bench, tests).
+    /// [`MEMORY_TRUNC_EPS`] of the range): the same model, tens of times slower
+    /// in the closed-loop plant (`host-sim bench`); kept for side-by-side
+    /// comparisons (the bench, tests).
     pub fn from_memory_truncated(
         m: &MemoryGrnn,
         description: impl Into<String>,
@@ -213,6 +217,7 @@ impl GrnnHose {
             g_max,
             newton_tol_paps: MEMORY_NEWTON_TOL_PAPS,
             predict_warm: true,
+            taylor_steps: true,
             description: description.into(),
         })
     }
@@ -320,6 +325,21 @@ impl GrnnHose {
         self
     }
 
+    /// Whether a plant evaluates this hose through caches that take
+    /// Taylor steps from their last exact evaluation
+    /// ([`LocalCache::with_taylor`]; true for a memory hose evaluated by
+    /// [`LocalGrnn`], within the same bound).
+    pub fn taylor_steps(&self) -> bool {
+        self.taylor_steps && matches!(self.eval, Evaluator::Local { .. })
+    }
+
+    /// This hose with Taylor steps in the plant on or off (off: every
+    /// evaluation summed, for comparisons).
+    pub fn with_taylor_steps(mut self, on: bool) -> Self {
+        self.taylor_steps = on;
+        self
+    }
+
     /// What the hose was fitted on.
     pub fn description(&self) -> &str {
         &self.description
@@ -335,8 +355,11 @@ impl GrnnHose {
     }
 
     /// [`GrnnHose::wall_rate`] through `cache` (used by a memory hose's
-    /// [`LocalGrnn`]; give each query stream, e.g. each hose line, its own). The
-    /// result does not depend on the cache's state.
+    /// [`LocalGrnn`]; give each query stream, e.g. each hose line, its own).
+    /// Through a plain cache ([`LocalCache::new`]) the result does not depend
+    /// on the cache's state; through a Taylor cache
+    /// ([`LocalCache::with_taylor`]) it may be a Taylor step from the cache's
+    /// last exact evaluation, within the same bound.
     #[inline]
     pub fn wall_rate_cached(
         &self,
@@ -376,7 +399,7 @@ impl GrnnHose {
     }
 
     /// [`GrnnHose::solve_dp_paps`] with the evaluations through `cache` (the same
-    /// result, see [`GrnnHose::wall_rate_cached`]).
+    /// result through a plain cache, see [`GrnnHose::wall_rate_cached`]).
     pub fn solve_dp_paps_cached(
         &self,
         p_pa: f64,
