@@ -171,13 +171,15 @@ fn run_rows(reps: usize, floor: f64) -> Vec<BenchRow> {
     rows
 }
 
-/// The grnn-memory plant with MPC-ESO on stepload, its evaluator ([`crate::model::hose::local`])
-/// and solve (Newton to
-/// [`MEMORY_NEWTON_TOL_PAPS`](crate::model::hose::grnn::MEMORY_NEWTON_TOL_PAPS) from a predicted start)
-/// against the former solve (to [`NEWTON_STEP_TOL_PAPS`] from the last
-/// solution) and against the former evaluator (grid-binned `Truncated`, the
-/// same bound) with the former solve, run after run in one process: real-time
-/// factors, the speed-up and the work per plant step.
+/// The grnn-memory plant with MPC-ESO on stepload: its evaluator
+/// ([`crate::model::hose::local`], mostly Taylor steps from each line's last
+/// exact evaluation) and solve (Newton to
+/// [`MEMORY_NEWTON_TOL_PAPS`](crate::model::hose::grnn::MEMORY_NEWTON_TOL_PAPS)
+/// from a predicted start) against the same with every evaluation summed, and
+/// against the former evaluator (grid-binned `Truncated`, the same bound) with
+/// the former solve (to [`NEWTON_STEP_TOL_PAPS`] from the last solution), run
+/// after run in one process: real-time factors, speed-ups and the work per
+/// plant step.
 fn memory_rows(reps: usize) -> Vec<BenchRow> {
     let new = spec(
         "stepload",
@@ -190,47 +192,36 @@ fn memory_rows(reps: usize) -> Vec<BenchRow> {
         let mut s = new.clone();
         s.plant = Plant::with_grnn_hose(
             dca_core::params::PlantParams::NOMINAL,
-            std::sync::Arc::new(h.with_newton(NEWTON_STEP_TOL_PAPS, false)),
+            std::sync::Arc::new(h),
         );
         s
     };
-    let solve = with_hose(GrnnHose::from_memory(&net, "former solve").expect("memory inputs"));
-    let old = with_hose(GrnnHose::from_memory_truncated(&net, "former").expect("memory inputs"));
+    let summed = with_hose(
+        GrnnHose::from_memory(&net, "every evaluation summed")
+            .expect("memory inputs")
+            .with_taylor_steps(false),
+    );
+    let old = with_hose(
+        GrnnHose::from_memory_truncated(&net, "former")
+            .expect("memory inputs")
+            .with_newton(NEWTON_STEP_TOL_PAPS, false),
+    );
     let d = new.scenario.duration_s();
-    let (mut t_new, mut t_solve, mut t_old) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let (mut t_new, mut t_summed, mut t_old) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     for _ in 0..reps.min(3) {
         t_old = t_old.min(time_run(&old));
-        t_solve = t_solve.min(time_run(&solve));
+        t_summed = t_summed.min(time_run(&summed));
         t_new = t_new.min(time_run(&new));
     }
-    // The work per step, counted on the plant stepped open loop (`openloop`;
-    // a run clones its plant, so the closed loop's counters are not visible).
-    let plant = &new.plant;
-    let ol = Scenario::by_name("openloop").expect("nominal scenario");
-    let mut x = plant.initial_state(ol.load_n(0.0));
-    let n_steps = ol.n_steps(new.dt_s);
-    for k in 0..n_steps {
-        let t = crate::model::scenario::tick_time_s(k, new.dt_s);
-        plant.step(
-            &mut x,
-            ol.v_cmd_mps(t).unwrap_or(0.0),
-            ol.load_n(t),
-            new.dt_s,
-        );
-    }
-    black_box(x);
-    let steps = n_steps as f64;
-    let w = plant.grnn_eval_stats().unwrap_or_default();
-    let (solves, iterations) = plant.grnn_solver_stats().unwrap_or_default();
-    vec![
+    let mut rows = vec![
         row(
             "grnn-memory plant + MPC-ESO (stepload, 10 s, dt 2e-4), one core",
             d / t_new,
             "x real time",
         ),
         row(
-            "  the same with the former solve (Newton to 1e-3 Pa/s from the last solution)",
-            d / t_solve,
+            "  the same with every GRNN evaluation summed (no Taylor steps)",
+            d / t_summed,
             "x real time",
         ),
         row(
@@ -239,23 +230,61 @@ fn memory_rows(reps: usize) -> Vec<BenchRow> {
             "x real time",
         ),
         row(
+            "  speed-up over every evaluation summed, same run",
+            t_summed / t_new,
+            "x",
+        ),
+        row(
             "  speed-up over the former evaluator and solve, same run",
             t_old / t_new,
             "x",
         ),
+    ];
+    rows.extend(memory_work_rows(&new));
+    rows
+}
+
+/// The work per plant step of the grnn-memory plant of `s`, counted on the
+/// plant stepped open loop (`openloop`; a run clones its plant, so the closed
+/// loop's counters are not visible).
+fn memory_work_rows(s: &RunSpec) -> Vec<BenchRow> {
+    let plant = &s.plant;
+    let ol = Scenario::by_name("openloop").expect("nominal scenario");
+    let mut x = plant.initial_state(ol.load_n(0.0));
+    let n_steps = ol.n_steps(s.dt_s);
+    for k in 0..n_steps {
+        let t = crate::model::scenario::tick_time_s(k, s.dt_s);
+        plant.step(&mut x, ol.v_cmd_mps(t).unwrap_or(0.0), ol.load_n(t), s.dt_s);
+    }
+    black_box(x);
+    let steps = n_steps as f64;
+    let w = plant.grnn_eval_stats().unwrap_or_default();
+    let (solves, iterations) = plant.grnn_solver_stats().unwrap_or_default();
+    let exact = w.evals.saturating_sub(w.taylor).max(1) as f64;
+    vec![
         row(
             "  GRNN evaluations per plant step (openloop, 8 Newton solves a step)",
             iterations as f64 / steps,
             "",
         ),
         row(
-            "  kernel evaluations (exp) per GRNN evaluation",
-            w.kernels as f64 / w.evals.max(1) as f64,
+            "  of them Taylor steps from the last exact evaluation",
+            100.0 * w.taylor as f64 / w.evals.max(1) as f64,
+            "%",
+        ),
+        row(
+            "  kernel evaluations (exp) per exact evaluation",
+            w.kernels as f64 / exact,
             "",
         ),
         row(
-            "  list rebuilds per 1000 GRNN evaluations",
-            1e3 * w.rebuilds as f64 / w.evals.max(1) as f64,
+            "  list rebuilds per 1000 exact evaluations",
+            1e3 * w.rebuilds as f64 / exact,
+            "",
+        ),
+        row(
+            "  training samples visited per list rebuild",
+            w.visited as f64 / w.rebuilds.max(1) as f64,
             "",
         ),
         row(
