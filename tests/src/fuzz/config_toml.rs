@@ -13,9 +13,10 @@
 //!   preset is known; a resolved configuration either is refused by
 //!   [`Controller::new`] or gives a controller whose commands are finite and
 //!   within its speed limit, whatever it is fed;
-//! * an accepted sweep parameter has a `table.key` path and finite values,
-//!   each of which the sweep accepts on its own (the sweep applies each one
-//!   separately).
+//! * an accepted sweep parameter has a path of the board's settings table
+//!   (`table.key`, or `table.group.key` as `model.hose.ce0_m3pp`) and finite
+//!   values, each of which the sweep accepts on its own (the sweep applies
+//!   each one separately).
 
 use dca_core::controller::{Controller, ControllerKind, Sample};
 use host_sim::sim::batch::SweepParam;
@@ -113,8 +114,13 @@ fn check_sweep(line: &str) {
     };
     let parts: Vec<&str> = p.path.split('.').collect();
     assert!(
-        parts.len() == 2 && parts.iter().all(|s| !s.is_empty()),
+        (2..=3).contains(&parts.len()) && parts.iter().all(|s| !s.is_empty()),
         "{line:?}: path {:?}",
+        p.path
+    );
+    assert!(
+        dca_app::settings::PARAMS.iter().any(|q| q.name == p.path),
+        "{line:?}: path {:?} is not a setting",
         p.path
     );
     assert!(!p.values.is_empty(), "{line:?}: no values");
