@@ -123,8 +123,10 @@ fn envelope_figure(path: &Path, s: &ServoEnvelope, details: &Details) -> Result<
     }
     let panel = Panel::new(
         format!(
-            "motor_limit, general family: available drive force over speed (reflected mass {:.0} kg)",
-            s.mass_eq_kg
+            "motor_limit, general family: available drive force over speed (reflected mass {:.0} kg{})",
+            s.mass_eq_kg,
+            s.accel_max_mps2
+                .map_or(String::new(), |a| format!(", ramp {a:.2} m/s^2"))
         ),
         "speed of the power piston [mm/s]",
         "drive force [N]",
@@ -557,14 +559,17 @@ fn servo_envelope_section(
         md,
         "## The servo's learned force envelope\n\n\
          | speed [mm/s] | {} |\n|---|{}\n| available force [N] | {} |\n\n\
-         Reflected mass {:.1} kg. Knots that the fit runs never press stay at the force of the \
-         knot below them.\n\n![servo envelope](servo_envelope.png)\n",
+         Reflected mass {:.1} kg.{} Knots that the fit runs never press stay at the force of \
+         the knot below them.\n\n![servo envelope](servo_envelope.png)\n",
         ENVELOPE_SPEEDS_MPS
             .map(|v| format!("{:.0}", v * 1e3))
             .join(" | "),
         "---|".repeat(ENVELOPE_SPEEDS_MPS.len()),
         s.force_n.map(|f| format!("{f:.0}")).join(" | "),
-        s.mass_eq_kg
+        s.mass_eq_kg,
+        s.accel_max_mps2.map_or(String::new(), |a| format!(
+            " The drive ramps its speed target at {a:.2} m/s^2 at most, whatever the load."
+        ))
     );
     Ok(())
 }
