@@ -152,6 +152,17 @@ fn shipped_static_hose() {
     }
 }
 
+/// A query of the memory GRNN far from its data (raw inputs: P [MPa],
+/// dP/dt [MPa/s], P - P_f1, P - P_f2).
+fn far_query(rng: &mut rand_chacha::ChaCha8Rng) -> [f64; MEMORY_DIM] {
+    [
+        rng.random_range(-5.0..10.0),
+        rng.random_range(-2e3..2e3),
+        rng.random_range(-5.0..5.0),
+        rng.random_range(-5.0..5.0),
+    ]
+}
+
 /// The memory hose's plant evaluator ([`LocalGrnn`]) against the direct sum of the
 /// same network, at two bounds: queries along random walks through the data (as
 /// the plant's: small steps, 99 of them between jumps, so that a list is reused
@@ -181,12 +192,7 @@ fn memory_local_within_bound_of_direct_sum() {
         for i in 0..4000 {
             let far = i % 100 == 99;
             if far {
-                x = [
-                    rng.random_range(-5.0..10.0),
-                    rng.random_range(-2e3..2e3),
-                    rng.random_range(-5.0..5.0),
-                    rng.random_range(-5.0..5.0),
-                ];
+                x = far_query(&mut rng);
             } else if i % 100 == 0 {
                 // Jump to a point of a run (after a far point too).
                 let j = rng.random_range(0..rows);
@@ -270,12 +276,7 @@ fn memory_taylor_steps_within_bound_of_direct_sum() {
         let mut x = [0.0; MEMORY_DIM];
         for i in 0..6000 {
             if i % 200 == 199 {
-                x = [
-                    rng.random_range(-5.0..10.0),
-                    rng.random_range(-2e3..2e3),
-                    rng.random_range(-5.0..5.0),
-                    rng.random_range(-5.0..5.0),
-                ];
+                x = far_query(&mut rng);
             } else if i % 200 == 0 {
                 let j = rng.random_range(0..rows);
                 x.copy_from_slice(&f[j * MEMORY_DIM..(j + 1) * MEMORY_DIM]);

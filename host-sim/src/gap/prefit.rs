@@ -209,39 +209,22 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
     // forces (knot by knot again); under the best one the masses around
     // and the ramp between its neighbours, kept only where it lowers the
     // error clearly.
-    let mut ramped: Option<(f64, f64, [f64; K])> = None;
+    let mut best_ramp: Option<(f64, f64, [f64; K])> = None;
     for ramp in log_axis(RAMP_MPS2.0, RAMP_MPS2.1, RAMP_STEPS) {
-        let under = EnvelopeSearch {
-            ramp: Some(ramp),
-            ..search
-        };
-        let (er, ar) = under.knots(m, a);
-        if ramped.is_none_or(|(best, _, _)| er < best) {
-            ramped = Some((er, ramp, ar));
+        let (er, ar) = search.ramped(ramp).knots(m, a);
+        if best_ramp.is_none_or(|(best, _, _)| er < best) {
+            best_ramp = Some((er, ramp, ar));
         }
     }
-    let with_ramp = ramped.and_then(|(er, ramp, ar)| {
-        let under = EnvelopeSearch {
-            ramp: Some(ramp),
-            ..search
-        };
-        let (er, mr, ar) = under.around(m, ar, er);
+    let with_ramp = best_ramp.and_then(|(er, ramp, ar)| {
+        let (er, mr, ar) = search.ramped(ramp).around(m, ar, er);
         // The ramp itself between its neighbours on the axis, the rest
         // held, then the envelope polished under it.
         let step = (RAMP_MPS2.1 / RAMP_MPS2.0).ln() / (RAMP_STEPS - 1) as f64;
-        let at_ln = |u: f64, stop: f64| {
-            EnvelopeSearch {
-                ramp: Some(u.exp()),
-                ..search
-            }
-            .error(mr, &ar, stop)
-        };
+        let at_ln = |u: f64, stop: f64| search.ramped(u.exp()).error(mr, &ar, stop);
         let (e_line, u) = golden_line(&at_ln, ramp.ln() - step, ramp.ln() + step, 5);
         let ramp = if e_line < er { u.exp() } else { ramp };
-        let under = EnvelopeSearch {
-            ramp: Some(ramp),
-            ..search
-        };
+        let under = search.ramped(ramp);
         let (er, mr, ar) = under.polish((under.error(mr, &ar, f64::INFINITY), mr, ar));
         (er < (1.0 - RAMP_GAIN) * e).then(|| (er, envelope(mr, &ar, Some(ramp))))
     });
@@ -327,6 +310,14 @@ struct EnvelopeSearch<'a> {
 }
 
 impl EnvelopeSearch<'_> {
+    /// The same search with the drive's ramp `ramp_mps2`.
+    fn ramped(self, ramp_mps2: f64) -> Self {
+        Self {
+            ramp: Some(ramp_mps2),
+            ..self
+        }
+    }
+
     /// The envelope search from the forces `a0`: a coarse log axis of
     /// masses, then a finer one around the best from its forces, then the
     /// polish; `None` where no mass explains Xi better than the nominal
@@ -499,6 +490,24 @@ mod tests {
         assert!((x[0] / 1200.0 - 1.0).abs() < 0.03, "{x:?}");
     }
 
+    /// An open-loop run of the rig with the servo envelope `truth`: extend at
+    /// full command against 800 N, return, stall against 1400 N.
+    fn envelope_run(truth: ServoEnvelope) -> Run {
+        let e = Effects {
+            servo_envelope: Some(truth),
+            ..Effects::NONE
+        };
+        open_loop_run(
+            e,
+            3.0,
+            (
+                vec![0.3, 0.8, 1.3, 1.6, 2.1],
+                &[0.0, 0.1, 0.0, -0.05, 0.0, 0.02],
+            ),
+            (vec![0.1, 2.0], &[0.0, 800.0, 1400.0]),
+        )
+    }
+
     /// A drive that ramps its speed target at 2 m/s^2 whatever the load
     /// (a force at rest no load reaches): the envelope finds the ramp.
     #[test]
@@ -508,19 +517,7 @@ mod tests {
             force_n: [5000.0; 6],
             accel_max_mps2: Some(2.0),
         };
-        let e = Effects {
-            servo_envelope: Some(truth),
-            ..Effects::NONE
-        };
-        let run = open_loop_run(
-            e,
-            3.0,
-            (
-                vec![0.3, 0.8, 1.3, 1.6, 2.1],
-                &[0.0, 0.1, 0.0, -0.05, 0.0, 0.02],
-            ),
-            (vec![0.1, 2.0], &[0.0, 800.0, 1400.0]),
-        );
+        let run = envelope_run(truth);
         let runs = std::slice::from_ref(&run);
         let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
         assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");
@@ -539,21 +536,9 @@ mod tests {
             force_n: [1200.0, 1200.0, 1200.0, 900.0, 600.0, 300.0],
             accel_max_mps2: None,
         };
-        let e = Effects {
-            servo_envelope: Some(truth),
-            ..Effects::NONE
-        };
-        // Extend at full command against 800 N (settles where A(v) = 800 N,
-        // near 67 mm/s), return, stall against 1400 N.
-        let run = open_loop_run(
-            e,
-            3.0,
-            (
-                vec![0.3, 0.8, 1.3, 1.6, 2.1],
-                &[0.0, 0.1, 0.0, -0.05, 0.0, 0.02],
-            ),
-            (vec![0.1, 2.0], &[0.0, 800.0, 1400.0]),
-        );
+        // Full command against 800 N settles where A(v) = 800 N, near
+        // 67 mm/s.
+        let run = envelope_run(truth);
         let runs = std::slice::from_ref(&run);
         let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
         assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");

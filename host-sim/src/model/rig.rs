@@ -451,6 +451,19 @@ mod tests {
         Rig::new(Plant::nominal(), e).unwrap()
     }
 
+    /// [`run`] on the nominal plant with the effects `e`.
+    fn run_with(e: Effects) -> Vec<RigState> {
+        run(&Rig::new(Plant::nominal(), e).unwrap())
+    }
+
+    /// The largest difference of Xo between two runs' states, um.
+    fn xo_dev_um(a: &[RigState], b: &[RigState]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x.x.xo_m - y.x.xo_m).abs() / 1e-6)
+            .fold(0.0, f64::max)
+    }
+
     /// Move out at 20 mm/s for 0.5 s, hold with 800 N from 1 s; states at 3 s.
     fn run(r: &Rig) -> Vec<RigState> {
         let mut s = r.initial_state(0.0);
@@ -590,11 +603,10 @@ mod tests {
     #[test]
     fn hysteresis_spectrum_is_a_sum_of_named_elements() {
         let with = |c: [f64; NS]| {
-            let e = Effects {
+            run_with(Effects {
                 hose_spectrum: Some(effects::HysteresisSpectrum::plays(c)),
                 ..Effects::NONE
-            };
-            run(&Rig::new(Plant::nominal(), e).unwrap())
+            })
         };
         let base = run(&rig(None));
         let xs = |v: &[RigState]| {
@@ -637,30 +649,23 @@ mod tests {
     #[test]
     fn a_stop_and_a_play_of_one_compliance_add_it_whatever_the_history() {
         let with = |plays: [f64; NS], stops: [f64; NS]| {
-            let e = Effects {
+            run_with(Effects {
                 hose_spectrum: Some(effects::HysteresisSpectrum {
                     c_m3pp: plays,
                     stop_c_m3pp: stops,
                 }),
                 ..Effects::NONE
-            };
-            run(&Rig::new(Plant::nominal(), e).unwrap())
-        };
-        let max_diff_um = |a: &[RigState], b: &[RigState]| {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| (x.x.xo_m - y.x.xo_m).abs() / 1e-6)
-                .fold(0.0, f64::max)
+            })
         };
         let c = 1e-12;
         let small = with([c, 0.0, 0.0, 0.0, 0.0], [c, 0.0, 0.0, 0.0, 0.0]);
         let large = with([0.0, 0.0, 0.0, 0.0, c], [0.0, 0.0, 0.0, 0.0, c]);
-        assert!(max_diff_um(&small, &large) < 1e-6);
-        assert!(max_diff_um(&small, &run(&rig(None))) > 1.0);
+        assert!(xo_dev_um(&small, &large) < 1e-6);
+        assert!(xo_dev_um(&small, &run(&rig(None))) > 1.0);
         let stop = with([0.0; NS], [0.0, 0.0, c, 0.0, 0.0]);
         let play = with([0.0, 0.0, c, 0.0, 0.0], [0.0; NS]);
-        assert!(max_diff_um(&stop, &play) > 1.0);
-        assert!(max_diff_um(&stop, &run(&rig(None))) > 1.0);
+        assert!(xo_dev_um(&stop, &play) > 1.0);
+        assert!(xo_dev_um(&stop, &run(&rig(None))) > 1.0);
     }
 
     /// The gas relaxation: zero weights are the nominal rig to rounding; one
@@ -672,11 +677,10 @@ mod tests {
     #[test]
     fn gas_relaxation_of_one_element_is_the_named_thermal_form() {
         let with = |w: [f64; NG]| {
-            let e = Effects {
+            run_with(Effects {
                 gas_relaxation: Some(effects::GasRelaxation { weights: w }),
                 ..Effects::NONE
-            };
-            run(&Rig::new(Plant::nominal(), e).unwrap())
+            })
         };
         let dev = |a: &[RigState], b: &[RigState]| {
             a.iter()
@@ -748,18 +752,12 @@ mod tests {
             }
         }
         let with_map = |m: effects::ScrewMap| {
-            let e = Effects {
+            run_with(Effects {
                 screw_map: Some(m),
                 ..Effects::NONE
-            };
-            run(&Rig::new(Plant::nominal(), e).unwrap())
+            })
         };
-        let dev = |a: &[RigState], b: &[RigState]| {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| (x.x.xo_m - y.x.xo_m).abs() / 1e-6)
-                .fold(0.0, f64::max)
-        };
+        let dev = xo_dev_um;
         let base = run(&rig(None));
         let named = run(&rig(Some((EffectKind::Backlash, &[100e-6, 2e7]))));
         let effect = dev(&named, &base);
