@@ -55,6 +55,7 @@ pub mod stats;
 #[cfg(test)]
 pub(crate) mod testing;
 pub mod validation;
+pub mod wide;
 
 use std::path::{Path, PathBuf};
 
@@ -152,7 +153,16 @@ pub fn run_gap(
         report::write(dir, &d, &details)?;
     }
     if let Some(path) = out.rig_out {
-        files::write(path, identified::rig_text(&d, &details, &runs))?;
+        let bar = progress::Progress::step(
+            opts.progress,
+            "fitting the rig's parameters for --rig-out (16 groups)",
+        );
+        let wide = identified::wide_fit(&d, &details, opts.dt_s);
+        bar.finish();
+        files::write(
+            path,
+            identified::rig_text(&d, &details, wide.as_ref(), &runs),
+        )?;
     }
     Ok(d)
 }

@@ -22,6 +22,22 @@ impl Progress {
         Self(bar)
     }
 
+    /// A spinner while one long step runs (`what`), drawn when `show` is set.
+    pub fn step(show: bool, what: &str) -> Self {
+        let bar = if show {
+            ProgressBar::new_spinner()
+        } else {
+            ProgressBar::hidden()
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+                .expect("valid template"),
+        );
+        bar.set_message(what.to_string());
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        Self(bar)
+    }
+
     /// One more candidate fitted, `name` the last one.
     pub fn done(&self, name: &str) {
         self.0.inc(1);

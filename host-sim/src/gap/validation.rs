@@ -351,10 +351,21 @@ pub fn check_scenario() -> Scenario {
 /// A synthetic rig log: `scenario` under `kind` with `effects`, realistic
 /// sensors seeded with `seed`, as the diagnosis would read it from a file.
 pub fn rig_log(scenario: Scenario, kind: ControllerKind, effects: &Effects, seed: u64) -> RunLog {
+    rig_log_on(Plant::nominal(), scenario, kind, effects, seed)
+}
+
+/// [`rig_log`] on the plant `plant` (its parameters off the nominal ones).
+pub fn rig_log_on(
+    plant: Plant,
+    scenario: Scenario,
+    kind: ControllerKind,
+    effects: &Effects,
+    seed: u64,
+) -> RunLog {
     let spec = RunSpec {
         scenario,
         controller: ControllerConfig::preset(Preset::Paper, kind),
-        plant: Plant::nominal(),
+        plant,
         effects: *effects,
         sensors: SensorMode::Realistic,
         seed,
