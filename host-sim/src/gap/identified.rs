@@ -10,6 +10,7 @@
 //! what it is, not for the nominal model. The verdict stays what it is.
 
 use super::diagnosis::{Details, Diagnosis, Verdict};
+use super::policy::NONE_GAP;
 use super::wide::{self, WideFit};
 use crate::io::num::Num;
 use crate::model::effects::{EffectKind, Effects};
@@ -32,9 +33,11 @@ pub fn rig(details: &Details, wide: Option<&WideFit>) -> RigFile {
 
 /// The wide fit of the rig's parameters, around the verdict's effect (not
 /// its `parameters` ratios, which it replaces), where the verdict leaves a
-/// gap beyond the noise (not `none`) and the check runs confirm it.
+/// gap beyond the noise on the fit or the check runs (not `none`) and the
+/// check runs confirm it.
 pub fn wide_fit(d: &Diagnosis, details: &Details, dt_s: f64) -> Option<WideFit> {
-    if d.verdict == Verdict::None {
+    let within_noise = d.fit.after < NONE_GAP && d.check.after < NONE_GAP;
+    if d.verdict == Verdict::None || within_noise {
         return None;
     }
     let effects = Effects {

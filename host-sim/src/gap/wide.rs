@@ -13,8 +13,9 @@
 //! fit gives them: the ratios of the [`GROUPS`] (each scaling its keys of
 //! [`crate::model::params::KEYS`] together), fitted as ln(ratio) within
 //! [`BOUNDS`] from the nominal rig by Levenberg-Marquardt on the fit runs'
-//! block-mean residuals ([`super::lsq::residuals`]), at most [`ITERS`]
-//! Jacobians. It is kept only where the held-out check runs confirm it: its
+//! block-mean residuals ([`super::lsq::residuals`]) with a prior toward the
+//! nominal values ([`PRIOR_SIGMA_LN`]), lightened in [`PRIOR_SCALES`] steps,
+//! at most [`ITERS`] Jacobians each. It is kept only where the held-out check runs confirm it: its
 //! gap there at most (1 - [`MARGIN`]) times that of the rig the verdict
 //! identified, and below the nominal model's.
 //!
@@ -61,6 +62,9 @@ pub const MARGIN: f64 = 0.1;
 /// The tolerance of a built rig's parameters the prior keeps them within,
 /// in ln(ratio): about +-30 %.
 pub const PRIOR_SIGMA_LN: f64 = 0.26;
+/// The prior's weights, heaviest first, in units of the fit runs' noise
+/// floor per [`PRIOR_SIGMA_LN`]: each fit starts where the one before ended.
+pub const PRIOR_SCALES: [f64; 3] = [30.0, 5.0, 1.0];
 /// Step of the finite differences, in ln(ratio).
 const H_LN: f64 = 0.03;
 
@@ -102,24 +106,36 @@ pub fn fit(
     dt_s: f64,
 ) -> Option<WideFit> {
     let n = GROUPS.len();
-    // The prior: each ln(ratio) at one PRIOR_SIGMA_LN costs as much as the
-    // whole noise floor of the fit runs.
-    let w = lsq::noise_floor(fit).sqrt() / PRIOR_SIGMA_LN;
-    let f = |theta: &[f64]| {
-        let plant = base.with_params(scaled(base.params(), theta));
-        let mut r = lsq::residuals(fit, &plant, effects, dt_s)?;
-        r.extend(theta.iter().map(|t| w * t));
-        Some(r)
-    };
-    let r = levenberg_marquardt(
-        &f,
-        &vec![0.0; n],
-        None,
-        &vec![H_LN; n],
-        &vec![BOUNDS.0.ln(); n],
-        &vec![BOUNDS.1.ln(); n],
-        ITERS,
-    )?;
+    let floor = lsq::noise_floor(fit).sqrt();
+    // The prior: each ln(ratio) at one PRIOR_SIGMA_LN costs `scale` times
+    // the whole noise floor of the fit runs. Far from the nominal model the
+    // residuals are rough; a heavy prior first takes small safe steps, and
+    // each lighter one starts where the heavier ended.
+    let mut x = vec![0.0; n];
+    let mut evals = 0;
+    let mut last = None;
+    for scale in PRIOR_SCALES {
+        let w = scale * floor / PRIOR_SIGMA_LN;
+        let f = |theta: &[f64]| {
+            let plant = base.with_params(scaled(base.params(), theta));
+            let mut r = lsq::residuals(fit, &plant, effects, dt_s)?;
+            r.extend(theta.iter().map(|t| w * t));
+            Some(r)
+        };
+        let r = levenberg_marquardt(
+            &f,
+            &x,
+            None,
+            &vec![H_LN; n],
+            &vec![BOUNDS.0.ln(); n],
+            &vec![BOUNDS.1.ln(); n],
+            ITERS,
+        )?;
+        evals += r.evals;
+        x.clone_from(&r.x);
+        last = Some(r);
+    }
+    let r = last?;
     let params = scaled(base.params(), &r.x);
     let plant = base.with_params(params);
     Some(WideFit {
@@ -127,7 +143,7 @@ pub fn fit(
         ratios: r.x.iter().map(|t| libm::exp(*t)).collect(),
         fit_gap: gap(fit, &plant, effects, dt_s),
         check_gap: gap(check, &plant, effects, dt_s),
-        evals: r.evals + 2,
+        evals: evals + 2,
     })
 }
 
