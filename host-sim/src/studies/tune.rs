@@ -5,7 +5,11 @@
 //!    parameters: the keys of the board's `model.*` settings ([`MODEL_KEYS`],
 //!    those `gap --rig-out` re-estimates and more) are copied from the rig
 //!    file; the rest of the design model stays nominal, so the board can
-//!    hold exactly what the host runs.
+//!    hold exactly what the host runs. The search starts from that design,
+//!    or where it costs more on the rig than the nominal design, from the
+//!    first of [`DESIGN_SHARES`] toward the nominal one that does not
+//!    ([`design_start`]): the `limit` settings designed on a rig's own
+//!    parameters can limit-cycle on it.
 //! 2. **Search.** The settings that decide the response on a given rig
 //!    ([`Knob`]: for `cmpc-eso` the acceleration limit, the compliance
 //!    feedforward's share, the observer's bandwidth and the move weight) are
@@ -266,6 +270,57 @@ pub fn design_model(rig: &PlantParams) -> PlantParams {
     p
 }
 
+/// How far the design model may move from the nominal one toward the
+/// rig's, tried in this order before the search ([`design_start`]).
+pub const DESIGN_SHARES: [f64; 5] = [1.0, 0.75, 0.5, 0.25, 0.0];
+
+/// The design model `design` moved back toward the nominal one: each of
+/// the [`MODEL_KEYS`] nominal x (design / nominal)^`share`.
+fn design_share(design: &PlantParams, share: f64) -> PlantParams {
+    let mut p = *design;
+    for k in MODEL_KEYS.iter().filter_map(|n| params::find(n)) {
+        let nominal = k.get(&PlantParams::NOMINAL);
+        if nominal > 0.0 && k.get(design) > 0.0 {
+            k.set(&mut p, nominal * (k.get(design) / nominal).powf(share));
+        }
+    }
+    p
+}
+
+/// The search's start: `start` with its design model (the rig's) moved
+/// toward the nominal one by the first of [`DESIGN_SHARES`] that costs no
+/// more on the rig than `reference` (the starting settings on the nominal
+/// design: cost 1), else by the share that costs least. A design on the
+/// rig's own parameters is not always a good start: the `limit` settings
+/// sit near a limit cycle on some rigs, which the search's box does not
+/// leave. Returns the start and the evaluations used.
+fn design_start(
+    setup: &TuneSetup,
+    start: &ControllerConfig,
+    reference: &Evaluation,
+) -> (ControllerConfig, u64) {
+    if start.plant == PlantParams::NOMINAL {
+        return (*start, 0);
+    }
+    let mut best = (f64::INFINITY, *start);
+    let mut evals = 0;
+    for share in DESIGN_SHARES {
+        let cfg = ControllerConfig {
+            plant: design_share(&start.plant, share),
+            ..*start
+        };
+        let c = cost(&evaluate(setup, &setup.rig.params, &cfg), reference);
+        evals += 1;
+        if c <= 1.0 {
+            return (cfg, evals);
+        }
+        if c < best.0 {
+            best = (c, cfg);
+        }
+    }
+    (best.1, evals)
+}
+
 /// The rig's keys that differ from nominal but that the design model does
 /// not carry (no `model.*` setting on the board).
 pub fn keys_left_out(rig: &PlantParams) -> Vec<&'static str> {
@@ -488,6 +543,7 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
     let before = evaluate(setup, &setup.rig.params, &setup.base);
     let mut start = setup.base;
     start.plant = design_model(&setup.rig.params);
+    let (start, design_evals) = design_start(setup, &start, &before);
     let bar = progress_bar(setup);
     let tried = std::sync::Mutex::new(Vec::new());
     let objective = Objective {
@@ -519,7 +575,7 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
         .run()
         .map_err(|e| TuneError::Refused(format!("the search failed: {e}")))?;
     let mut tried = tried.into_inner().expect("not poisoned");
-    let evals = tried.len() as u64;
+    let evals = tried.len() as u64 + design_evals;
     tried.sort_by(|a, b| a.0.total_cmp(&b.0));
     tried.dedup_by(|a, b| a.1 == b.1);
     // Candidates: the best few feasible points, then the starting settings
@@ -753,4 +809,28 @@ pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::Pa
     let path = dir.join("report.md");
     files::write(&path, md)?;
     Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The design share moves every `model.*` value from the nominal one
+    /// (0) to the rig's (1) on a log scale, all by one share.
+    #[test]
+    fn the_design_share_blends_nominal_and_rig_logarithmically() {
+        let mut rig = PlantParams::NOMINAL;
+        rig.m_kg = 200.0;
+        rig.aa1_m2 *= 0.25;
+        rig.hose.cs0_m3pp *= 4.0;
+        let design = design_model(&rig);
+        assert_eq!(design_share(&design, 0.0), PlantParams::NOMINAL);
+        assert_eq!(design_share(&design, 1.0), design);
+        let half = design_share(&design, 0.5);
+        assert!((half.m_kg - 100.0).abs() < 1e-9);
+        assert!((half.aa1_m2 / PlantParams::NOMINAL.aa1_m2 - 0.5).abs() < 1e-12);
+        let cs0 = half.hose.cs0_m3pp / PlantParams::NOMINAL.hose.cs0_m3pp;
+        assert!((cs0 - 2.0).abs() < 1e-12);
+        assert_eq!(half.ap1_m2, PlantParams::NOMINAL.ap1_m2);
+    }
 }
