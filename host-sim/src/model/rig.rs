@@ -1,100 +1,71 @@
 //! A rig: the plant with unmodelled effects switched on ([`crate::model::effects`]).
 //!
-//! The effects enter the plant's equations (docs/model.md section 4) at these places:
+//! The rig names no effect: the equations (docs/model.md section 4) have
+//! places where an effect may add a term, and at each the rig asks every
+//! active effect, in the rows' order of the catalogue, through its
+//! [`RigTerms`] (implemented in the effect's part file):
 //!
-//! * a flow between the lines: Q1 -= Ql, Q2 += Ql, Ql the sum of every
-//!   active effect's [`effects::NamedEffect::leak_flow_m3ps`] (`leakage`:
-//!   G (P1 - P2), or its general family's learned flow);
-//! * a force on the actuating piston: every active effect's
-//!   [`effects::NamedEffect::piston_force_n`] is added to its forces
-//!   (`friction`: the Stribeck force, or its general family's learned force);
-//! * `backlash`: the power piston (position xp, an extra state) sits behind
-//!   the motor (the encoder's Xi) by the play's flank the hydraulic force
-//!   pushes it against plus the screw's deflection under that force (a
-//!   massless piston: its velocity solves the coupling exactly); the line
-//!   volumes and flows use xp and its velocity; in its general family the
-//!   deflection is a learned odd function of the force;
-//! * `air`: the oil compressibility V/beta_e of each line becomes V/beta_eff(P);
-//! * `motor_limit`: the servo's speed target is capped, and its force (the
-//!   speed loop's demand on the reflected mass plus the hydraulic force on the
-//!   power piston) is clamped;
-//! * `hose_hysteresis`: a play operator on each line pressure (extra states h1,
-//!   h2) adds its compliance to the line's capacitance while engaged, and
-//!   holds a share of the hose wall's compliance while not;
-//! * `accumulator_thermal`: the gas temperature T (an extra state) relaxes to
-//!   ambient; P_acc,abs = P0_abs (V0/Vg) (T/T0); in its general family six
-//!   relaxed shares s_k of the log pressure (extra states) give
-//!   P_acc,abs = P0_abs exp(n ln(V0/Vg) - sum s_k);
-//! * `sensor_delay` and `sensor_calibration` (named or general) act on the
-//!   readings, not here
-//!   (see [`crate::model::sensors`]);
-//! * `parameters` builds the plant with its parameters scaled
-//!   ([`effects::ParameterRatios::apply`]); the equations are the plant's.
+//! * building the rig: the plant parameters it changes
+//!   ([`RigTerms::plant_params`], e.g. `parameters`: the plant is built with
+//!   them), whether it suits the plant ([`RigTerms::check_plant`]), and
+//!   whether it changes the equations at all ([`RigTerms::ON_EQUATIONS`];
+//!   with none such on, [`Rig::step`] is [`Plant::step`]) or the lines'
+//!   compliance ([`RigTerms::ON_LINES`], refused on a GRNN hose);
+//! * its states: each effect carries [`RigTerms::STATES`] of its own, laid
+//!   out in the rows' order ([`N_EXT`] in all, [`Ext`]), at rest as it
+//!   says ([`RigTerms::rest_states`]); it reads and writes only its own;
+//! * the servo's acceleration ([`RigTerms::servo_accel_mps2`], e.g.
+//!   `motor_limit`; else the nominal first-order servo);
+//! * a force on the actuating piston ([`RigTerms::piston_force_n`], summed,
+//!   e.g. `friction`);
+//! * a coupling between the motor (the encoder's Xi) and the power piston
+//!   ([`RigTerms::coupling`], e.g. `backlash`): the power piston's position
+//!   is one of the effect's states; the line volumes and flows use it, and
+//!   its velocity solves the coupling exactly (a massless piston,
+//!   [`RigTerms::power_piston_rates`]);
+//! * the accumulator's gas law ([`RigTerms::accumulator_flow_m3ps`], e.g.
+//!   `accumulator_thermal`: its flow, with its states' rates);
+//! * a flow from line 1 to line 2 ([`RigTerms::leak_flow_m3ps`], summed, e.g.
+//!   `leakage`): Q1 -= Ql, Q2 += Ql;
+//! * each line's compliance ([`RigTerms::add_line_compliance`], e.g. `air`,
+//!   `hose_hysteresis`): each effect in turn adds its compliance to the
+//!   line's capacitance, reading the pressure rate it gives so far
+//!   ([`effects::Line`]);
+//! * the step: the smallest factor any effect puts on the plant's largest
+//!   stable step ([`RigTerms::step_scale`], e.g. a stiffening hysteresis).
+//!
+//! `sensor_delay` and `sensor_calibration` (named or general) act on the
+//! readings, not here (see [`crate::model::sensors`]).
 //!
 //! With no effect active [`Rig::step`] is [`Plant::step`], bit for bit.
-//! `air` and `hose_hysteresis` change the explicit pressure equation and are
-//! defined for the `nonlinear`, `linear` and `rigid` hoses only.
 
-use crate::model::effects::{self, EffectError, Effects, T_AMBIENT_K};
+#[cfg(doc)]
+use crate::model::effects::RigTerms;
+use crate::model::effects::{self, EffectError, EffectKind, Effects, Gas, Line, Rest};
 use crate::model::plant::{HoseModel, Plant, PressureRates, State, N_STATES};
 
-/// Elements of the hysteresis spectrum per line.
-const NS: usize = effects::SPECTRUM_YIELDS_PA.len();
+/// Number of extra states the effects carry ([`effects::EXT_STATES`]).
+pub const N_EXT: usize = effects::EXT_STATES;
 
-/// Elements of the gas relaxation.
-const NG: usize = effects::GAS_TAUS_S.len();
-
-/// Number of extra states the effects carry.
-pub const N_EXT: usize = 4 + 2 * NS + NG;
-
-/// Extra states of the effects (unused ones stay at their initial value).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// Extra states of the effects: each effect's [`RigTerms::STATES`], in the
+/// rows' order of the catalogue whether the effect is on or not (those of
+/// effects that are off stay at zero).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ext {
-    /// Power piston position behind the play (`backlash`), m.
-    pub xp_m: f64,
-    /// Hysteretic pressures of the hose walls (`hose_hysteresis`), within
-    /// +-yield_pa, Pa.
-    pub h_pa: [f64; 2],
-    /// Accumulator gas temperature (`accumulator_thermal`), K.
-    pub t_gas_k: f64,
-    /// Hysteretic pressures of the spectrum's elements per line
-    /// (`hose_hysteresis`, general family), Pa.
-    pub hs_pa: [[f64; NS]; 2],
-    /// Relaxed shares of the accumulator gas's log pressure
-    /// (`accumulator_thermal`, general family), dimensionless.
-    pub sg: [f64; NG],
+    v: [f64; N_EXT],
+}
+
+impl Default for Ext {
+    fn default() -> Self {
+        Self { v: [0.0; N_EXT] }
+    }
 }
 
 impl Ext {
-    fn as_array(&self) -> [f64; N_EXT] {
-        let mut a = [0.0; N_EXT];
-        a[..4].copy_from_slice(&[self.xp_m, self.h_pa[0], self.h_pa[1], self.t_gas_k]);
-        a[4..4 + NS].copy_from_slice(&self.hs_pa[0]);
-        a[4 + NS..4 + 2 * NS].copy_from_slice(&self.hs_pa[1]);
-        a[4 + 2 * NS..].copy_from_slice(&self.sg);
-        a
+    /// Every extra state, in the rows' order.
+    pub fn values(&self) -> &[f64; N_EXT] {
+        &self.v
     }
-
-    fn from_array(a: [f64; N_EXT]) -> Self {
-        Self {
-            xp_m: a[0],
-            h_pa: [a[1], a[2]],
-            t_gas_k: a[3],
-            hs_pa: [
-                std::array::from_fn(|i| a[4 + i]),
-                std::array::from_fn(|i| a[4 + NS + i]),
-            ],
-            sg: std::array::from_fn(|i| a[4 + 2 * NS + i]),
-        }
-    }
-}
-
-/// Rates of the hysteretic pressures: the named form's per line, the
-/// spectrum's per line and element.
-#[derive(Clone, Copy, Debug, Default)]
-struct HystRates {
-    h: [f64; 2],
-    hs: [[f64; NS]; 2],
 }
 
 /// The state of a rig: the plant's state and the effects' extra states.
@@ -109,7 +80,7 @@ pub struct RigState {
 impl RigState {
     /// True if every entry is finite.
     pub fn is_finite(&self) -> bool {
-        self.x.is_finite() && self.ext.as_array().iter().all(|v| v.is_finite())
+        self.x.is_finite() && self.ext.v.iter().all(|v| v.is_finite())
     }
 }
 
@@ -122,6 +93,8 @@ pub struct Rig {
     /// readings and `parameters`, which changes the plant itself):
     /// [`Rig::step`] is [`Plant::step`]. Decided once, not per step.
     plant_only: bool,
+    /// Some effect adds compliance to the lines ([`RigTerms::ON_LINES`]).
+    on_lines: bool,
 }
 
 /// Why effects cannot be combined with a plant.
@@ -130,22 +103,32 @@ pub enum RigError {
     /// An effect's parameters are out of range.
     #[error(transparent)]
     Effects(#[from] EffectError),
-    /// `air` or `hose_hysteresis` on a GRNN hose (named).
+    /// An effect on the lines' compliance on a GRNN hose (named).
     #[error(
-        "effects air and hose_hysteresis need an explicit hose model (nonlinear, linear or rigid), not {0}"
+        "effects {names} need an explicit hose model (nonlinear, linear or rigid), not {0}",
+        names = line_effect_names()
     )]
     ImplicitHose(&'static str),
-    /// `accumulator_thermal`'s general family relaxing the gas's index to
-    /// zero or below on this rig (a spring of no or negative stiffness).
-    #[error(
-        "accumulator_thermal's relaxation weights sum to {sum}, not below the rig's polytropic index n_poly = {n_poly}: the relaxed gas would have no stiffness"
-    )]
-    GasIndex {
-        /// The weights' sum.
-        sum: f64,
-        /// The rig's polytropic index.
-        n_poly: f64,
-    },
+    /// An effect that does not suit the plant's parameters (what fails,
+    /// naming the effect; e.g. `accumulator_thermal`'s general family
+    /// relaxing the gas's index to zero or below, a spring of no or
+    /// negative stiffness).
+    #[error("{0}")]
+    Unsuited(String),
+}
+
+/// The effects on the lines' compliance ([`EffectKind::on_lines`]): `a`,
+/// `a and b`, `a, b and c`.
+fn line_effect_names() -> String {
+    let names: Vec<&str> = EffectKind::ALL
+        .into_iter()
+        .filter(|k| k.on_lines())
+        .map(|k| k.name())
+        .collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => names.concat(),
+    }
 }
 
 impl Rig {
@@ -156,36 +139,23 @@ impl Rig {
             plant.hose_model(),
             HoseModel::Nonlinear | HoseModel::Linear | HoseModel::Rigid
         );
-        let hose_effect = effects.air.is_some()
-            || effects.hose_hysteresis.is_some()
-            || effects.hose_spectrum.is_some();
-        if !explicit && hose_effect {
+        let on_lines = effects.on_lines();
+        if !explicit && on_lines {
             return Err(RigError::ImplicitHose(plant.hose_model().name()));
         }
-        let plant_only = Effects {
-            sensor_delay: None,
-            sensor_filter: None,
-            sensor_calibration: None,
-            sensor_map: None,
-            parameters: None,
-            ..effects
-        }
-        .is_none();
-        let plant = match &effects.parameters {
-            Some(r) => plant.with_params(r.apply(plant.params())),
+        let plant_only = !effects.on_equations();
+        let plant = match effects.plant_params(plant.params()) {
+            Some(p) => plant.with_params(p),
             None => plant,
         };
-        if let Some(g) = &effects.gas_relaxation {
-            let sum: f64 = g.weights.iter().sum();
-            let n_poly = plant.params().n_poly;
-            if sum >= n_poly {
-                return Err(RigError::GasIndex { sum, n_poly });
-            }
-        }
+        effects
+            .check_plant(plant.params())
+            .map_err(RigError::Unsuited)?;
         Ok(Self {
             plant,
             effects,
             plant_only,
+            on_lines,
         })
     }
 
@@ -205,41 +175,39 @@ impl Rig {
     }
 
     /// Rest state under the load `ft0_n` with the motor (encoder) at `xi_m`
-    /// and the actuating piston at `xo_m`; behind a backlash the power piston
-    /// rests on the flank the hydraulic force holds it against.
+    /// and the actuating piston at `xo_m`, the effects' states at rest
+    /// ([`RigTerms::rest_states`]: e.g. behind a backlash the power piston
+    /// rests on the flank the hydraulic force holds it against).
     pub fn rest_state(&self, ft0_n: f64, xi_m: f64, xo_m: f64) -> RigState {
         let mut x = self.plant.initial_state(ft0_n);
         x.xi_m = xi_m;
         x.xo_m = xo_m;
-        let xp_m = match self.effects.coupling() {
-            Some(c) => xi_m - c.offset_m(self.piston_force_n(&x)),
-            None => xi_m,
+        let mut ext = Ext::default();
+        let rest = Rest {
+            xi_m,
+            piston_force_n: self.piston_force_n(&x),
         };
-        RigState {
-            x,
-            ext: Ext {
-                xp_m,
-                h_pa: [0.0, 0.0],
-                t_gas_k: T_AMBIENT_K,
-                hs_pa: [[0.0; NS]; 2],
-                sg: [0.0; NG],
-            },
-        }
+        self.effects.rest_states(rest, &mut ext.v);
+        RigState { x, ext }
+    }
+
+    /// The power piston's position in the state `s` where an effect puts a
+    /// coupling between it and the motor ([`RigTerms::coupling`]), m.
+    pub fn power_piston_m(&self, s: &RigState) -> Option<f64> {
+        let f_n = self.piston_force_n(&s.x);
+        self.effects.coupling(&s.ext.v, f_n).map(|c| c.xp_m)
     }
 
     /// Factor (at most 1) on the largest stable plant step: the fastest mode
     /// (the actuating piston against the lines' hydraulic stiffness) scales
-    /// with the inverse of the line capacitance, which `hose_hysteresis`
-    /// lowers by its stuck share of the wall's part. Taken where that matters
-    /// most: zero pressure (the wall at its softest) and the smallest oil volume.
+    /// with the inverse of the line capacitance, which an effect may lower
+    /// ([`RigTerms::step_scale`]). Taken where that matters most: zero
+    /// pressure (the wall at its softest) and the smallest oil volume.
     pub fn step_scale(&self) -> f64 {
-        let Some(h) = &self.effects.hose_hysteresis else {
-            return 1.0;
-        };
         let p = self.plant.params();
         let (v_min, _) = self.plant.line_volumes(p.x_max_m, p.x_min_m);
         let (c_oil, c_wall) = self.capacitance(0.0, v_min);
-        ((c_oil + (1.0 - h.stuck_share) * c_wall) / (c_oil + c_wall)).clamp(0.01, 1.0)
+        self.effects.step_scale(c_oil, c_wall)
     }
 
     /// Hydraulic force on the power piston, positive opposing extension, N.
@@ -269,63 +237,51 @@ impl Rig {
     ) -> ([f64; N_STATES], [f64; N_EXT]) {
         let e = &self.effects;
         let p = self.plant.params();
+        let ext = &s.ext.v;
+        let mut de = [0.0; N_EXT];
         let mut x = s.x;
-        // Servo (motor side): target, torque-speed cut, acceleration limit.
+        // Servo (motor side): target, then the effects' limits, if any.
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
         let f_piston = self.piston_force_n(&x);
-        let dvi = effects::servo_accel(e.servo(), vc, x.vi_mps, p.tau_m_s, f_piston);
+        let dvi = e
+            .servo_accel_mps2(vc, x.vi_mps, p.tau_m_s, f_piston)
+            .unwrap_or_else(|| (vc - x.vi_mps) / p.tau_m_s);
         let mut fo = self.plant.forces_n(&x, ft_n);
         e.add_piston_forces_n(&mut fo, x.vo_mps, x.p1_pa, x.p2_pa);
         let motor = (x.xi_m, x.vi_mps);
-        // The lines see the power piston: behind the backlash at ext.xp_m.
-        if e.coupling().is_some() {
-            x.xi_m = s.ext.xp_m;
+        // The lines see the power piston: behind a coupling, at its state.
+        let coupling = e.coupling(ext, f_piston);
+        if let Some(c) = &coupling {
+            x.xi_m = c.xp_m;
         }
-        // Accumulator flow (with the gas temperature) and leakage depend on
-        // the state only; the piston's velocity enters through Q1 and Q2.
+        // Accumulator flow (with the effects' gas states) and leakage depend
+        // on the state only; the piston's velocity enters through Q1 and Q2.
         let qa_nom = self.plant.flows(&x).qa_m3ps;
-        let mut qa = qa_nom;
-        let mut dt_gas = 0.0;
-        if let Some(th) = &e.accumulator_thermal {
-            // Gas law with temperature: P_abs = P0_abs (V0 / Vg) (T / T0).
-            let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
-            let pacc =
-                p_abs0 * (p.v_gas0_m3 / x.vg_m3) * (s.ext.t_gas_k / T_AMBIENT_K) - p.p_atm_pa;
-            qa = p.g_acc_m3pspa * (pacc - x.p2_pa);
-            // Adiabatic compression heats the gas (dVg = qa), exchange relaxes it.
-            dt_gas = -(p.n_poly - 1.0) * s.ext.t_gas_k * qa / x.vg_m3
-                + (T_AMBIENT_K - s.ext.t_gas_k) / th.tau_s;
-        }
-        let mut dsg = [0.0; NG];
-        if let Some(g) = &e.gas_relaxation {
-            // The nominal law with the relaxed shares taken off the log
-            // pressure: exactly the plant's with every share at zero.
-            let u = libm::log(p.v_gas0_m3 / x.vg_m3);
-            let relaxed: f64 = s.ext.sg.iter().sum();
-            let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
-            let pacc = p_abs0 * libm::exp(p.n_poly * u - relaxed) - p.p_atm_pa;
-            qa = p.g_acc_m3pspa * (pacc - x.p2_pa);
-            for (k, d) in dsg.iter_mut().enumerate() {
-                *d = (g.weights[k] * u - s.ext.sg[k]) / effects::GAS_TAUS_S[k];
-            }
-        }
+        let gas = Gas {
+            params: p,
+            vg_m3: x.vg_m3,
+            p2_pa: x.p2_pa,
+        };
+        let qa = e.accumulator_flow_m3ps(gas, ext, &mut de).unwrap_or(qa_nom);
         let ql = e.leak_flow_m3ps(x.p1_pa, x.p2_pa);
-        let lines = |vp: f64| self.line_rates(s, &x, vp, qa - qa_nom, ql);
-        // Behind a backlash the piston sits where the coupling carries the
-        // hydraulic force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt
-        // is affine in vp (through Q1, Q2): solved exactly from two evaluations.
-        let (vp, (r, dh)) = match e.coupling() {
+        let lines =
+            |vp: f64, de: &mut [f64; N_EXT]| self.line_rates(ext, &x, vp, qa - qa_nom, ql, de);
+        // Behind a coupling the piston sits where it carries the hydraulic
+        // force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt is affine
+        // in vp (through Q1, Q2): solved exactly from two evaluations.
+        let (vp, r) = match coupling {
             Some(c) => {
-                let g1 = c.compliance_mpn(f_piston);
+                let g1 = c.compliance_mpn;
                 let df = |r: &PressureRates| p.ap1_m2 * r.dp1_paps - p.ap2_m2 * r.dp2_paps;
                 let dv = 1e-3;
-                let f0 = df(&lines(motor.1).0);
-                let slope = ((df(&lines(motor.1 + dv).0) - f0) / dv).max(0.0);
+                let f0 = df(&lines(motor.1, &mut de));
+                let slope = ((df(&lines(motor.1 + dv, &mut de)) - f0) / dv).max(0.0);
                 let vp = motor.1 - g1 * f0 / (1.0 + g1 * slope);
-                (vp, lines(vp))
+                (vp, lines(vp, &mut de))
             }
-            None => (motor.1, lines(motor.1)),
+            None => (motor.1, lines(motor.1, &mut de)),
         };
+        e.power_piston_rates(vp, &mut de);
         let d = [
             motor.1,
             dvi,
@@ -339,27 +295,23 @@ impl Rig {
             r.dvs2_m3ps,
             qa,
         ];
-        let mut de = [0.0; N_EXT];
-        de[..4].copy_from_slice(&[vp, dh.h[0], dh.h[1], dt_gas]);
-        de[4..4 + NS].copy_from_slice(&dh.hs[0]);
-        de[4 + NS..4 + 2 * NS].copy_from_slice(&dh.hs[1]);
-        de[4 + 2 * NS..].copy_from_slice(&dsg);
         (d, de)
     }
 
     /// Pressure and hose-volume rates with the power piston (position in
     /// `x.xi_m`) moving at `vp`, the accumulator flow changed by `dqa` and the
-    /// leakage `ql` from line 1 to line 2; and the rates of the hysteretic
-    /// pressures.
+    /// leakage `ql` from line 1 to line 2; the effects on the lines'
+    /// compliance ([`RigTerms::add_line_compliance`]) write their states'
+    /// rates (from the extra states `ext`) into `de`.
     fn line_rates(
         &self,
-        s: &RigState,
+        ext: &[f64; N_EXT],
         x: &State,
         vp: f64,
         dqa: f64,
         ql: f64,
-    ) -> (PressureRates, HystRates) {
-        let e = &self.effects;
+        de: &mut [f64; N_EXT],
+    ) -> PressureRates {
         let p = self.plant.params();
         let mut xv = *x;
         xv.vi_mps = vp;
@@ -367,49 +319,22 @@ impl Rig {
         let q1 = flows.q1_m3ps - ql;
         let q2 = flows.q2_m3ps + dqa + ql;
         let mut r = self.plant.pressure_rates(&xv, q1, q2);
-        let mut dh = HystRates::default();
-        if e.air.is_none() && e.hose_hysteresis.is_none() && e.hose_spectrum.is_none() {
-            return (r, dh);
+        if !self.on_lines {
+            return r;
         }
         let (v1, v2) = self.plant.line_volumes(xv.xi_m, xv.xo_m);
         for (j, (pj, vj)) in [(xv.p1_pa, v1), (xv.p2_pa, v2)].into_iter().enumerate() {
-            let (c_oil, c_wall) = self.capacitance(pj, vj);
-            let c_nom = c_oil + c_wall;
-            let mut c = c_nom;
-            if let Some(a) = &e.air {
-                c += vj
-                    * (effects::compressibility_ppa(a, p.beta_e_pa, pj, p.p_atm_pa)
-                        - 1.0 / p.beta_e_pa);
-            }
             let dp_nom = if j == 0 { r.dp1_paps } else { r.dp2_paps };
-            let mut dp = dp_nom * c_nom / c;
-            if let Some(h) = &e.hose_hysteresis {
-                let z = s.ext.h_pa[j];
-                let engaged = effects::hysteresis_engagement(h, z, dp);
-                c += engaged * h.c_m3pp - (1.0 - engaged) * h.stuck_share * c_wall;
-                dp = dp_nom * c_nom / c;
-                dh.h[j] = effects::hysteresis_rate(h, z, dp);
-            }
-            if let Some(spec) = &e.hose_spectrum {
-                // Engagement from the direction before the elements act (as
-                // the named form); the compliances add up.
-                let dp0 = dp;
-                for i in 0..NS {
-                    c += spec.compliance_m3pp(i, s.ext.hs_pa[j][i], dp0);
-                }
-                dp = dp_nom * c_nom / c;
-                for i in 0..NS {
-                    let el = spec.element(i);
-                    dh.hs[j][i] = effects::hysteresis_rate(&el, s.ext.hs_pa[j][i], dp);
-                }
-            }
+            let mut line = Line::new(p, j, (pj, vj), self.capacitance(pj, vj), dp_nom);
+            self.effects.add_line_compliances(&mut line, ext, de);
+            let dp = line.dp_paps();
             if j == 0 {
                 r.dp1_paps = dp;
             } else {
                 r.dp2_paps = dp;
             }
         }
-        (r, dh)
+        r
     }
 
     /// One RK4 step with inputs held (docs/model.md 4.2), software limit first.
@@ -419,10 +344,12 @@ impl Rig {
             return;
         }
         let v = self.plant.software_limited_v_cmd(s.x.xi_m, v_cmd_mps);
-        let (x0, e0) = (s.x.as_array(), s.ext.as_array());
+        let (x0, e0) = (s.x.as_array(), s.ext.v);
         let at = |dx: &[f64; N_STATES], de: &[f64; N_EXT], h: f64| RigState {
             x: State::from_array(std::array::from_fn(|i| x0[i] + h * dx[i])),
-            ext: Ext::from_array(std::array::from_fn(|i| e0[i] + h * de[i])),
+            ext: Ext {
+                v: std::array::from_fn(|i| e0[i] + h * de[i]),
+            },
         };
         let (k1, l1) = self.derivative(s, v, ft_n);
         let (k2, l2) = self.derivative(&at(&k1, &l1, 0.5 * dt_s), v, ft_n);
@@ -432,9 +359,8 @@ impl Rig {
         s.x = State::from_array(std::array::from_fn(|i| {
             x0[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         }));
-        s.ext = Ext::from_array(std::array::from_fn(|i| {
-            e0[i] + sixth * (l1[i] + 2.0 * l2[i] + 2.0 * l3[i] + l4[i])
-        }));
+        s.ext.v =
+            std::array::from_fn(|i| e0[i] + sixth * (l1[i] + 2.0 * l2[i] + 2.0 * l3[i] + l4[i]));
     }
 }
 
@@ -442,6 +368,12 @@ impl Rig {
 mod tests {
     use super::*;
     use crate::model::effects::{self, EffectKind};
+
+    /// Elements of the hysteresis spectrum per line.
+    const NS: usize = effects::SPECTRUM_YIELDS_PA.len();
+
+    /// Elements of the gas relaxation.
+    const NG: usize = effects::GAS_TAUS_S.len();
 
     fn rig(k: Option<(EffectKind, &[f64])>) -> Rig {
         let mut e = Effects::NONE;
@@ -530,11 +462,11 @@ mod tests {
         let mut s = r.initial_state(0.0);
         let f0 = r.piston_force_n(&s.x);
         assert!(f0 < -100.0, "{f0}");
-        let lead = s.ext.xp_m - s.x.xi_m;
+        let lead = r.power_piston_m(&s).unwrap() - s.x.xi_m;
         assert!((lead - (100e-6 - f0 / 1e7)).abs() < 1e-7, "{lead:e}");
         // At rest the state does not move.
         let (_, de) = r.derivative(&s, 0.0, 0.0);
-        assert!(de[0].abs() < 1e-12, "{}", de[0]);
+        assert!(de.iter().all(|d| d.abs() < 1e-12), "{de:?}");
         // 800 N on the load turns the force over: the piston crosses the play
         // and lags the motor by the half play plus the deflection.
         for _ in 0..5000 {
@@ -542,7 +474,7 @@ mod tests {
         }
         let f = r.piston_force_n(&s.x);
         assert!(f > 100.0, "{f}");
-        let lag = s.x.xi_m - s.ext.xp_m;
+        let lag = s.x.xi_m - r.power_piston_m(&s).unwrap();
         let want = effects::backlash_offset_m(&b, f);
         assert!(
             want > 100e-6 && (lag - want).abs() < 1e-6,
@@ -719,7 +651,7 @@ mod tests {
         };
         assert!(matches!(
             Rig::new(Plant::nominal().with_params(p), soft),
-            Err(RigError::GasIndex { .. })
+            Err(RigError::Unsuited(_))
         ));
         // Weights that sum beyond the bound are refused too.
         let e = Effects {

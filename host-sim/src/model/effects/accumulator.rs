@@ -1,9 +1,11 @@
 //! The accumulator: the gas temperature relaxing (`accumulator_thermal`) and
 //! its general family, the gas relaxation spectrum.
 
+use dca_core::params::PlantParams;
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+use super::terms::{Gas, Rest, RigTerms};
 
 /// Accumulator gas temperature relaxation.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
@@ -100,5 +102,59 @@ impl GeneralFamily for GasRelaxation {
             .zip(self.weights)
             .map(|(tau, w)| (format!("weight_at_tau_{tau}_s"), w))
             .collect()
+    }
+}
+
+/// The gas temperature T (the one state) relaxing to ambient:
+/// P_acc,abs = P0_abs (V0/Vg) (T/T0).
+impl RigTerms for AccumulatorThermal {
+    const STATES: usize = 1;
+    fn rest_states(&self, _rest: &Rest, own: &mut [f64]) {
+        own[0] = T_AMBIENT_K;
+    }
+    fn accumulator_flow_m3ps(&self, gas: &Gas<'_>, own: &[f64], rates: &mut [f64]) -> Option<f64> {
+        let p = gas.params;
+        let t_gas_k = own[0];
+        // Gas law with temperature: P_abs = P0_abs (V0 / Vg) (T / T0).
+        let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
+        let pacc = p_abs0 * (p.v_gas0_m3 / gas.vg_m3) * (t_gas_k / T_AMBIENT_K) - p.p_atm_pa;
+        let qa = p.g_acc_m3pspa * (pacc - gas.p2_pa);
+        // Adiabatic compression heats the gas (dVg = qa), exchange relaxes it.
+        rates[0] =
+            -(p.n_poly - 1.0) * t_gas_k * qa / gas.vg_m3 + (T_AMBIENT_K - t_gas_k) / self.tau_s;
+        Some(qa)
+    }
+}
+
+/// The relaxed shares s_k of the gas's log pressure (the six states):
+/// P_acc,abs = P0_abs exp(n ln(V0/Vg) - sum s_k).
+impl RigTerms for GasRelaxation {
+    const STATES: usize = GAS_TAUS_S.len();
+    /// The weights must leave the gas some stiffness: their sum below the
+    /// plant's polytropic index.
+    fn check_plant(&self, p: &PlantParams) -> Result<(), String> {
+        let sum: f64 = self.weights.iter().sum();
+        let n_poly = p.n_poly;
+        if sum >= n_poly {
+            return Err(format!(
+                "accumulator_thermal's relaxation weights sum to {sum}, not below the rig's \
+                 polytropic index n_poly = {n_poly}: the relaxed gas would have no stiffness"
+            ));
+        }
+        Ok(())
+    }
+    fn accumulator_flow_m3ps(&self, gas: &Gas<'_>, own: &[f64], rates: &mut [f64]) -> Option<f64> {
+        let p = gas.params;
+        // The nominal law with the relaxed shares taken off the log
+        // pressure: exactly the plant's with every share at zero.
+        let u = libm::log(p.v_gas0_m3 / gas.vg_m3);
+        let relaxed: f64 = own.iter().sum();
+        let p_abs0 = p.p_acc0_pa + p.p_atm_pa;
+        let pacc = p_abs0 * libm::exp(p.n_poly * u - relaxed) - p.p_atm_pa;
+        let qa = p.g_acc_m3pspa * (pacc - gas.p2_pa);
+        for (k, d) in rates.iter_mut().enumerate() {
+            *d = (self.weights[k] * u - own[k]) / GAS_TAUS_S[k];
+        }
+        Some(qa)
     }
 }

@@ -1,8 +1,11 @@
 //! The catalogue's vocabulary, below every part file: what one parameter
 //! is ([`ParamSpec`]), what a named form and a general family tell the
-//! catalogue ([`NamedEffect`], [`GeneralFamily`]) and what a form's
+//! catalogue ([`NamedEffect`], [`GeneralFamily`]; what they add to the
+//! rig's equations is their [`RigTerms`], in `terms`) and what a form's
 //! parameters may break ([`Broken`]). `mod.rs` puts the effect's identifier
 //! on it ([`super::EffectError`]).
+
+use super::terms::RigTerms;
 
 /// One parameter of an effect: name (with unit), typical value, fit bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,9 +48,10 @@ pub enum Broken {
 }
 
 /// An effect's named form as the catalogue sees it: its part of the rig,
-/// its parameters, and the relations they must keep. Each part file
-/// implements it beside the form.
-pub trait NamedEffect: Copy {
+/// its parameters, and the relations they must keep; its terms in the
+/// rig's equations are its [`RigTerms`]. Each part file implements both
+/// beside the form.
+pub trait NamedEffect: Copy + RigTerms {
     /// The part of the rig ([`EffectKind::subsystem`](super::EffectKind::subsystem)).
     const SUBSYSTEM: &'static str;
     /// The parameters, in the order of [`NamedEffect::values`].
@@ -70,17 +74,6 @@ pub trait NamedEffect: Copy {
     fn check_relations(&self) -> Result<(), Broken> {
         Ok(())
     }
-    /// The force it puts on the actuating piston against extension, N, at
-    /// the piston's speed and the line pressures; `None` where it puts
-    /// none (the rig adds every effect's, [`Effects::add_piston_forces_n`](super::Effects::add_piston_forces_n)).
-    fn piston_force_n(&self, _vo_mps: f64, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
-        None
-    }
-    /// The flow it lets from line 1 to line 2, m^3/s; `None` where it lets
-    /// none (the rig adds every effect's, [`Effects::leak_flow_m3ps`](super::Effects::leak_flow_m3ps)).
-    fn leak_flow_m3ps(&self, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
-        None
-    }
     /// The parameters by name for reports where they are not simply
     /// [`NamedEffect::PARAMS`] with [`NamedEffect::values`].
     fn param_map(&self) -> Option<Vec<(String, f64)>> {
@@ -89,8 +82,9 @@ pub trait NamedEffect: Copy {
 }
 
 /// An effect's general family: the broader model of the same part, never on
-/// together with the named form.
-pub trait GeneralFamily: Copy {
+/// together with the named form; its terms in the rig's equations are its
+/// [`RigTerms`].
+pub trait GeneralFamily: Copy + RigTerms {
     /// The error when it is on together with its named form.
     const BOTH: &'static str;
     /// What its parameters must satisfy (the error when they do not).
@@ -101,15 +95,4 @@ pub trait GeneralFamily: Copy {
     fn family_valid(&self) -> bool;
     /// Its parameters by name for reports (names carry their units).
     fn param_map(&self) -> Vec<(String, f64)>;
-    /// The force it puts on the actuating piston against extension, N, at
-    /// the piston's speed and the line pressures; `None` where it puts
-    /// none (the rig adds every effect's, [`Effects::add_piston_forces_n`](super::Effects::add_piston_forces_n)).
-    fn piston_force_n(&self, _vo_mps: f64, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
-        None
-    }
-    /// The flow it lets from line 1 to line 2, m^3/s; `None` where it lets
-    /// none (the rig adds every effect's, [`Effects::leak_flow_m3ps`](super::Effects::leak_flow_m3ps)).
-    fn leak_flow_m3ps(&self, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
-        None
-    }
 }

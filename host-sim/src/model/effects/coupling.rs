@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+use super::terms::{PowerPiston, Rest, RigTerms};
 
 use super::common::{interp, segment};
 
@@ -93,34 +94,6 @@ impl ScrewMap {
     }
 }
 
-/// The coupling between the motor and the power piston of a rig: the named
-/// backlash or its general family.
-#[derive(Clone, Copy, Debug)]
-pub enum Coupling<'a> {
-    /// The named form ([`Backlash`]).
-    Named(&'a Backlash),
-    /// The general family ([`ScrewMap`]).
-    Map(&'a ScrewMap),
-}
-
-impl Coupling<'_> {
-    /// How far the power piston sits behind the motor under the force `f_n`, m.
-    pub fn offset_m(&self, f_n: f64) -> f64 {
-        match self {
-            Self::Named(b) => backlash_offset_m(b, f_n),
-            Self::Map(m) => m.offset_m(f_n),
-        }
-    }
-
-    /// The derivative of [`Self::offset_m`] with respect to the force, m/N.
-    pub fn compliance_mpn(&self, f_n: f64) -> f64 {
-        match self {
-            Self::Named(b) => backlash_compliance_mpn(b, f_n),
-            Self::Map(m) => m.compliance_mpn(f_n),
-        }
-    }
-}
-
 impl NamedEffect for Backlash {
     const SUBSYSTEM: &'static str = "servo";
     const PARAMS: &'static [ParamSpec] = &[
@@ -160,5 +133,43 @@ impl GeneralFamily for ScrewMap {
             .zip(self.deflection_m)
             .map(|(f, d)| (format!("deflection_m_at_{f:.0}_n"), d))
             .collect()
+    }
+}
+
+/// A coupling between the motor and the power piston, whose position is
+/// the one state.
+impl RigTerms for Backlash {
+    const STATES: usize = 1;
+    /// The power piston on the flank the hydraulic force holds it against.
+    fn rest_states(&self, rest: &Rest, own: &mut [f64]) {
+        own[0] = rest.xi_m - backlash_offset_m(self, rest.piston_force_n);
+    }
+    fn coupling(&self, own: &[f64], f_n: f64) -> Option<PowerPiston> {
+        Some(PowerPiston {
+            xp_m: own[0],
+            compliance_mpn: backlash_compliance_mpn(self, f_n),
+        })
+    }
+    fn power_piston_rates(&self, vp_mps: f64, rates: &mut [f64]) {
+        rates[0] = vp_mps;
+    }
+}
+
+/// A coupling between the motor and the power piston, whose position is
+/// the one state.
+impl RigTerms for ScrewMap {
+    const STATES: usize = 1;
+    /// The power piston deflected by the hydraulic force.
+    fn rest_states(&self, rest: &Rest, own: &mut [f64]) {
+        own[0] = rest.xi_m - self.offset_m(rest.piston_force_n);
+    }
+    fn coupling(&self, own: &[f64], f_n: f64) -> Option<PowerPiston> {
+        Some(PowerPiston {
+            xp_m: own[0],
+            compliance_mpn: self.compliance_mpn(f_n),
+        })
+    }
+    fn power_piston_rates(&self, vp_mps: f64, rates: &mut [f64]) {
+        rates[0] = vp_mps;
     }
 }

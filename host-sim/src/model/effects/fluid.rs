@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, NamedEffect, ParamSpec, KAPPA_MAX};
+use super::terms::{Line, RigTerms};
 
 /// Entrained air.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
@@ -44,5 +45,15 @@ impl NamedEffect for Air {
             return Err(Broken::Kappa(self.kappa));
         }
         Ok(())
+    }
+}
+
+/// The oil's compressibility V / beta_e of each line becomes V / beta_eff(P).
+impl RigTerms for Air {
+    const ON_LINES: bool = true;
+    fn add_line_compliance(&self, line: &mut Line<'_>, _own: &[f64], _rates: &mut [f64]) {
+        let p = line.params;
+        line.c_m3pp += line.v_m3
+            * (compressibility_ppa(self, p.beta_e_pa, line.p_pa, p.p_atm_pa) - 1.0 / p.beta_e_pa);
     }
 }

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
+use super::terms::{Line, RigTerms};
 
 /// Rate-independent hose-wall hysteresis.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
@@ -143,5 +144,49 @@ impl GeneralFamily for HysteresisSpectrum {
         let mut m = at("c_m3pp", self.c_m3pp);
         m.extend(at("stop_c_m3pp", self.stop_c_m3pp));
         m
+    }
+}
+
+/// A hysteretic pressure per line (the states: line 1's, line 2's) whose
+/// engagement adds the compliance and holds the stuck share of the wall's.
+impl RigTerms for HoseHysteresis {
+    const STATES: usize = 2;
+    const ON_LINES: bool = true;
+    /// The stuck share lowers the line capacitance and so shortens the
+    /// fastest mode's period (the actuating piston against the lines'
+    /// hydraulic stiffness); taken at the softest wall.
+    fn step_scale(&self, c_oil_m3pp: f64, c_wall_m3pp: f64) -> Option<f64> {
+        let (c_oil, c_wall) = (c_oil_m3pp, c_wall_m3pp);
+        Some(((c_oil + (1.0 - self.stuck_share) * c_wall) / (c_oil + c_wall)).clamp(0.01, 1.0))
+    }
+    fn add_line_compliance(&self, line: &mut Line<'_>, own: &[f64], rates: &mut [f64]) {
+        let z = own[line.index];
+        let engaged = hysteresis_engagement(self, z, line.dp_paps());
+        line.c_m3pp +=
+            engaged * self.c_m3pp - (1.0 - engaged) * self.stuck_share * line.c_wall_m3pp;
+        rates[line.index] = hysteresis_rate(self, z, line.dp_paps());
+    }
+}
+
+/// Each element's hysteretic pressure per line (the states: line 1's five,
+/// then line 2's) whose engagement weighs its play's and its stop's
+/// compliances.
+impl RigTerms for HysteresisSpectrum {
+    const STATES: usize = 2 * SPECTRUM_YIELDS_PA.len();
+    const ON_LINES: bool = true;
+    fn add_line_compliance(&self, line: &mut Line<'_>, own: &[f64], rates: &mut [f64]) {
+        const N: usize = SPECTRUM_YIELDS_PA.len();
+        let z = &own[N * line.index..N * (line.index + 1)];
+        // Engagement from the direction before the elements act (as the
+        // named form); the compliances add up.
+        let dp0 = line.dp_paps();
+        for (i, zi) in z.iter().enumerate() {
+            line.c_m3pp += self.compliance_m3pp(i, *zi, dp0);
+        }
+        let dp = line.dp_paps();
+        let dz = &mut rates[N * line.index..N * (line.index + 1)];
+        for (i, (d, zi)) in dz.iter_mut().zip(z).enumerate() {
+            *d = hysteresis_rate(&self.element(i), *zi, dp);
+        }
     }
 }

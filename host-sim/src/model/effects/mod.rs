@@ -35,34 +35,45 @@
 //! calibration) and `parameters`, with `common` for the piecewise-linear
 //! maps they share; everything is re-exported here. Each form carries its
 //! own catalogue entry ([`NamedEffect`]: part of the rig, parameters with
-//! their ranges, checks, report names, and the terms it adds to the plant's
-//! equations), each general family its own ([`GeneralFamily`]); both traits
-//! live in `catalogue`, below the part files. This file
-//! holds what spans them: one row per effect in `effects!`, from which
-//! the set of active effects ([`Effects`]), the identifiers
-//! ([`EffectKind`]), their dispatch and validation are made, and the
-//! errors.
+//! their ranges, checks, report names), each general family its own
+//! ([`GeneralFamily`]), and
+//! both the terms they add to the rig's equations ([`RigTerms`]); the
+//! traits live in `catalogue` and `terms`, below the part files, and
+//! `passes` goes through every active effect for the rig. This file
+//! holds what spans them: one row per effect in `effects!`, from which the
+//! set of active effects ([`Effects`]), the identifiers ([`EffectKind`]),
+//! their dispatch, the layout of the effects' states ([`EXT_STATES`]) and
+//! validation are made, and the errors.
 //!
 //! # Adding an effect
 //!
-//! A new effect that puts a force on the actuating piston or lets oil from
-//! line 1 to line 2 touches two files: its part file (the form's struct
-//! with `Deserialize` and `Serialize`, and `impl NamedEffect` with its part, its
-//! parameters, how it is built from them, its checks and its hook,
-//! [`NamedEffect::piston_force_n`] or [`NamedEffect::leak_flow_m3ps`]) and
-//! one row of `effects!` below (`Kind => field: Form;`, with
-//! `, family_field: Family` for a general family that implements
-//! [`GeneralFamily`]). From these follow its TOML table
-//! `[plant.effects.<field>]`, `--effect <field>:...`, validation, the rig's
-//! equations ([`crate::model::rig`] adds every effect's hooks), the
-//! diagnosis's bounded fit over its parameters and its report names. A
-//! part file of its own adds its `mod` and `pub use` lines beside the row.
-//! Two things stay outside on purpose: an effect that acts elsewhere in the
-//! equations (the servo, the coupling, the lines' compliance, states of its
-//! own) also needs its term in `rig.rs`, and for the diagnosis to *name*
-//! it, the equation and dependence it shows in must map to it in the
-//! naming table of `gap/closures.rs` (docs/gap.md's table); a general
-//! family's learned fit lives in `gap/candidates.rs`.
+//! A new effect touches two files: its part file and one row of `effects!`
+//! below (`Kind => field: Form;`, with `, family_field: Family` for its
+//! general family). In the part file go the form's struct (with
+//! `Deserialize` and `Serialize`), `impl NamedEffect` (its part, its
+//! parameters, how it is built from them, its checks) and `impl RigTerms`,
+//! the terms it adds to the rig's equations: each a hook that adds nothing
+//! unless the effect implements it (a force on the actuating piston, a flow
+//! from line 1 to line 2, the servo's acceleration, a coupling between the
+//! motor and the power piston, the accumulator's gas law, a line's
+//! compliance, the plant's parameters and a check against them, the step
+//! scale), and states of its own if it needs them ([`RigTerms::STATES`],
+//! their rest values and rates; the rig lays them out from the rows and
+//! hands each effect only its own). A general family is the same with
+//! `impl GeneralFamily`. From these follow
+//! its TOML table `[plant.effects.<field>]`, `--effect <field>:...`,
+//! validation, the rig's equations ([`crate::model::rig`] calls every
+//! active effect's hooks and names none), the diagnosis's bounded fit over
+//! its parameters and its report names. A part
+//! file of its own adds its `mod` and `pub use` lines beside the row.
+//!
+//! Outside these two files, on purpose: an effect that needs a place in the
+//! equations no hook offers yet adds the hook to [`RigTerms`] (in `terms`),
+//! its pass over the active effects (in `passes`) and its one call in `rig.rs`,
+//! once for every later effect; for the diagnosis to *name* an effect, the
+//! equation and dependence it shows in must map to it in the naming table
+//! of `gap/closures.rs` (docs/gap.md's table); and a general family's
+//! learned fit lives in `gap/candidates.rs`.
 
 use std::collections::BTreeMap;
 
@@ -77,9 +88,11 @@ mod coupling;
 mod fluid;
 mod hose;
 mod parameters;
+mod passes;
 mod seals;
 mod sensors;
 mod servo;
+mod terms;
 
 pub use accumulator::*;
 pub use catalogue::{Broken, GeneralFamily, NamedEffect, ParamSpec, KAPPA_MAX, VALID_SPAN};
@@ -90,6 +103,7 @@ pub use parameters::*;
 pub use seals::*;
 pub use sensors::*;
 pub use servo::*;
+pub use terms::{Gas, Line, PowerPiston, Rest, RigTerms};
 
 pub(crate) use common::segment;
 
@@ -132,6 +146,13 @@ macro_rules! effects {
         pub enum EffectKind {
             $( $(#[doc = $doc])* $kind, )*
         }
+
+        /// Number of extra states of the rig: every row's named form's and
+        /// general family's [`RigTerms::STATES`], laid out in the rows'
+        /// order (each row's named form, then its general family, whether
+        /// on or not).
+        pub const EXT_STATES: usize =
+            0 $(+ <$named as RigTerms>::STATES $(+ <$general as RigTerms>::STATES)?)*;
 
         /// Number of effects the diagnosis fits by a bounded search.
         const N_CATALOGUE: usize = 0 $(+ <$named as NamedEffect>::SEARCHED as usize)*;
@@ -187,6 +208,17 @@ macro_rules! effects {
                         $( return <$general as GeneralFamily>::FORM; )?
                         #[allow(unreachable_code)]
                         "general"
+                    })*
+                }
+            }
+
+            /// Whether the effect, named or general, adds compliance to the
+            /// lines ([`RigTerms::ON_LINES`]): it needs an explicit hose.
+            pub fn on_lines(self) -> bool {
+                match self {
+                    $(Self::$kind => {
+                        <$named as RigTerms>::ON_LINES
+                            $(|| <$general as RigTerms>::ON_LINES)?
                     })*
                 }
             }
@@ -263,45 +295,27 @@ macro_rules! effects {
                     .collect()
             }
 
-            /// Add the force every active effect puts on the actuating
-            /// piston ([`NamedEffect::piston_force_n`]) to `f_n`, in the rows'
-            /// order.
-            pub fn add_piston_forces_n(
-                &self,
-                f_n: &mut f64,
-                vo_mps: f64,
-                p1_pa: f64,
-                p2_pa: f64,
-            ) {
-                let (v, p1, p2) = (vo_mps, p1_pa, p2_pa);
+            /// Visit every active effect, named form or general family, in
+            /// the rows' order, with the range of its states in the rig's
+            /// extra states: each row's named form, then its general family,
+            /// has the next [`RigTerms::STATES`] of them, whether on or not.
+            fn visit_active<V: terms::Visit>(&self, v: &mut V) {
+                let mut at = 0;
                 $(
-                    if let Some(f) = self.$field.and_then(|x| x.piston_force_n(v, p1, p2)) {
-                        *f_n += f;
+                    let n = <$named as RigTerms>::STATES;
+                    if let Some(x) = &self.$field {
+                        v.visit(x, at..at + n);
                     }
+                    at += n;
                     $(
-                        if let Some(f) = self.$family.and_then(|g| g.piston_force_n(v, p1, p2)) {
-                            *f_n += f;
+                        let n = <$general as RigTerms>::STATES;
+                        if let Some(g) = &self.$family {
+                            v.visit(g, at..at + n);
                         }
+                        at += n;
                     )?
                 )*
-            }
-
-            /// The flow from line 1 to line 2 every active effect lets
-            /// through ([`NamedEffect::leak_flow_m3ps`]), summed in the rows'
-            /// order, m^3/s.
-            pub fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> f64 {
-                let mut q_m3ps = 0.0;
-                $(
-                    if let Some(q) = self.$field.and_then(|x| x.leak_flow_m3ps(p1_pa, p2_pa)) {
-                        q_m3ps += q;
-                    }
-                    $(
-                        if let Some(q) = self.$family.and_then(|g| g.leak_flow_m3ps(p1_pa, p2_pa)) {
-                            q_m3ps += q;
-                        }
-                    )?
-                )*
-                q_m3ps
+                let _ = at;
             }
 
             /// Every active named form's bounds beyond its ranges.
@@ -383,15 +397,6 @@ impl Effects {
     /// True when no effect is active.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
-    }
-
-    /// The servo model these effects give.
-    pub fn servo(&self) -> Servo<'_> {
-        match (&self.servo_envelope, &self.motor_limit) {
-            (Some(s), _) => Servo::Envelope(s),
-            (None, Some(m)) => Servo::Limit(m),
-            (None, None) => Servo::Nominal,
-        }
     }
 
     /// The active effects.
@@ -578,17 +583,6 @@ fn effect_names() -> String {
 fn param_names(kind: EffectKind) -> String {
     let all: Vec<&str> = kind.params().iter().map(|p| p.name).collect();
     all.join(", ")
-}
-
-impl Effects {
-    /// The coupling these effects put between motor and power piston, if any.
-    pub fn coupling(&self) -> Option<Coupling<'_>> {
-        match (&self.screw_map, &self.backlash) {
-            (Some(m), _) => Some(Coupling::Map(m)),
-            (None, Some(b)) => Some(Coupling::Named(b)),
-            (None, None) => None,
-        }
-    }
 }
 
 #[cfg(test)]

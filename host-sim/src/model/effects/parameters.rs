@@ -4,6 +4,7 @@ use dca_core::params::PlantParams;
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, NamedEffect, ParamSpec};
+use super::terms::RigTerms;
 
 use super::common::one;
 
@@ -129,5 +130,14 @@ impl NamedEffect for ParameterRatios {
             return Err(Broken::Requirement("every ratio must be > 0"));
         }
         Ok(())
+    }
+}
+
+/// The plant built with its parameters scaled: the equations are the
+/// plant's.
+impl RigTerms for ParameterRatios {
+    const ON_EQUATIONS: bool = false;
+    fn plant_params(&self, p: &PlantParams) -> Option<PlantParams> {
+        Some(self.apply(p))
     }
 }

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+use super::terms::RigTerms;
 
 use super::common::{interp, one};
 
@@ -161,9 +162,6 @@ impl NamedEffect for Leakage {
             exponent: at(1),
         }
     }
-    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
-        Some(leak_flow_m3ps(self, p1_pa, p2_pa))
-    }
     fn check_relations(&self) -> Result<(), Broken> {
         if !(self.exponent > 0.0 && self.exponent <= 2.0) {
             return Err(Broken::Requirement("exponent must be in (0, 2]"));
@@ -187,9 +185,6 @@ impl GeneralFamily for LeakageMap {
         }
         m
     }
-    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
-        Some(self.flow(p1_pa, p2_pa))
-    }
 }
 
 impl NamedEffect for Friction {
@@ -208,9 +203,6 @@ impl NamedEffect for Friction {
             static_n: at(1),
             stribeck_mps: at(2),
         }
-    }
-    fn piston_force_n(&self, vo_mps: f64, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
-        Some(friction_force_n(self, vo_mps))
     }
     fn check_bounds(&self) -> Result<(), Broken> {
         if self.stribeck_mps <= 0.0 {
@@ -235,6 +227,31 @@ impl GeneralFamily for FrictionMap {
         }
         m
     }
+}
+
+/// A flow from line 1 to line 2.
+impl RigTerms for Leakage {
+    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
+        Some(leak_flow_m3ps(self, p1_pa, p2_pa))
+    }
+}
+
+/// A flow from line 1 to line 2.
+impl RigTerms for LeakageMap {
+    fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> Option<f64> {
+        Some(self.flow(p1_pa, p2_pa))
+    }
+}
+
+/// A force on the actuating piston.
+impl RigTerms for Friction {
+    fn piston_force_n(&self, vo_mps: f64, _p1_pa: f64, _p2_pa: f64) -> Option<f64> {
+        Some(friction_force_n(self, vo_mps))
+    }
+}
+
+/// A force on the actuating piston.
+impl RigTerms for FrictionMap {
     fn piston_force_n(&self, vo_mps: f64, p1_pa: f64, p2_pa: f64) -> Option<f64> {
         Some(self.force(vo_mps, p1_pa, p2_pa))
     }

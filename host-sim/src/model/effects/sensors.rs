@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec};
+use super::terms::RigTerms;
 
 use super::common::{interp, one};
 
@@ -347,4 +348,24 @@ impl GeneralFamily for SensorMap {
         }
         m
     }
+}
+
+/// On the readings only ([`crate::model::sensors`]).
+impl RigTerms for SensorDelay {
+    const ON_EQUATIONS: bool = false;
+}
+
+/// On the readings only ([`crate::model::sensors`]).
+impl RigTerms for SensorFilter {
+    const ON_EQUATIONS: bool = false;
+}
+
+/// On the readings only ([`crate::model::sensors`]).
+impl RigTerms for SensorCalibration {
+    const ON_EQUATIONS: bool = false;
+}
+
+/// On the readings only ([`crate::model::sensors`]).
+impl RigTerms for SensorMap {
+    const ON_EQUATIONS: bool = false;
 }

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
+use super::terms::RigTerms;
 
 /// Servo torque and acceleration limits.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
@@ -181,5 +182,31 @@ impl GeneralFamily for ServoEnvelope {
             m.push(("accel_max_mps2".to_string(), a));
         }
         m
+    }
+}
+
+/// The speed cap and the force limit on the servo.
+impl RigTerms for MotorLimit {
+    fn servo_accel_mps2(&self, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> Option<f64> {
+        Some(servo_accel(
+            Servo::Limit(self),
+            vc_mps,
+            v_mps,
+            tau_s,
+            f_load_n,
+        ))
+    }
+}
+
+/// The force envelope over speed on the servo.
+impl RigTerms for ServoEnvelope {
+    fn servo_accel_mps2(&self, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> Option<f64> {
+        Some(servo_accel(
+            Servo::Envelope(self),
+            vc_mps,
+            v_mps,
+            tau_s,
+            f_load_n,
+        ))
     }
 }
