@@ -17,10 +17,7 @@ use super::progress::Progress;
 use super::replay::Replay;
 use super::run::Run;
 use super::{calibrate, grey_box, lsq, prefit, sensor_family};
-use crate::model::effects::{
-    CalChannel, EffectKind, Effects, FrictionMap, GasRelaxation, HysteresisSpectrum, LeakageMap,
-    ScrewMap, GAS_TAUS_S, GAS_WEIGHT_SUM_MAX, SPECTRUM_YIELDS_PA,
-};
+use crate::model::effects::{CalChannel, EffectKind, Effects};
 use crate::model::plant::Plant;
 
 /// Effects fitted on runs.
@@ -92,13 +89,10 @@ pub struct Fitter<'a> {
 }
 
 /// Starting points of the learned general families (their least-squares
-/// values), from the structural closures; `None`: start from the nominal
-/// model.
+/// values, [`crate::model::effects::GeneralFamily::to_learned`]) by effect,
+/// from the structural closures; none: start from the nominal model.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct LearnedStarts {
-    /// The coupling's deflection increments (the general family's fit).
-    pub screw: Option<Vec<f64>>,
-}
+pub struct LearnedStarts(pub BTreeMap<EffectKind, Vec<f64>>);
 
 impl Fitter<'_> {
     /// Fit the parameters of `kinds` jointly (starting from their values in
@@ -300,11 +294,6 @@ impl Fitter<'_> {
                 };
                 (effects, gap(self.fit, self.base, &effects, self.dt_s))
             }
-            EffectKind::HoseHysteresis => self.fit_spectrum(before_fit)?,
-            EffectKind::Friction => self.fit_friction_map(before_fit)?,
-            EffectKind::Leakage => self.fit_leakage_map(before_fit)?,
-            EffectKind::AccumulatorThermal => self.fit_gas_relaxation(before_fit)?,
-            EffectKind::Backlash => self.fit_screw_map(before_fit)?,
             EffectKind::SensorDelay => {
                 let f = sensor_family::fit_filter(
                     self.fit,
@@ -332,6 +321,7 @@ impl Fitter<'_> {
                 let f = force.or(f)?;
                 (f.effects, f.gap)
             }
+            _ if k.learned_len() > 0 => self.fit_learned(k, before_fit)?,
             _ => return None,
         };
         let fit = Fitted {
@@ -342,22 +332,21 @@ impl Fitter<'_> {
         Some((fit, gap(self.check, self.base, &effects, self.dt_s)))
     }
 
-    /// A learned general family by least squares on the fit runs'
-    /// block-mean residuals: `n` non-negative values in units of their own
-    /// scale (`with` builds the effect from them), Levenberg-Marquardt from
-    /// zero (the nominal model), at most [`LEARNED_ITERS`] Jacobians; the
-    /// values with the gap there. `None` when the plant cannot take the
-    /// effect (an implicit GRNN hose) or it does not lower the fit runs'
-    /// nominal gap `before_fit`.
-    fn fit_learned(
-        &self,
-        n: usize,
-        with: &(dyn Fn(&[f64]) -> Effects + Sync),
-        start: Option<&[f64]>,
-        before_fit: f64,
-    ) -> Option<(Effects, f64)> {
+    /// The learned general family of `k` by least squares on the fit runs'
+    /// block-mean residuals: its [`EffectKind::learned_len`] non-negative
+    /// values in the family's units ([`Effects::learned_family`] builds it
+    /// from them), Levenberg-Marquardt from the learned start of `k` if any
+    /// ([`LearnedStarts`]), else from zero (the nominal model), at most
+    /// [`LEARNED_ITERS`] Jacobians; the family with the gap there. `None`
+    /// when `k` has no learned family, the plant cannot take the effect (an
+    /// implicit GRNN hose) or it does not lower the fit runs' nominal gap
+    /// `before_fit`.
+    fn fit_learned(&self, k: EffectKind, before_fit: f64) -> Option<(Effects, f64)> {
+        let n = k.learned_len();
+        Effects::learned_family(k, &vec![0.0; n])?;
+        let with = |x: &[f64]| Effects::learned_family(k, x).unwrap_or(Effects::NONE);
         let f = |x: &[f64]| lsq::residuals(self.fit, self.base, &with(x), self.dt_s);
-        let x0: Vec<f64> = match start {
+        let x0: Vec<f64> = match self.learned.0.get(&k) {
             Some(s) if s.len() == n => s.iter().map(|v| v.clamp(0.0, 50.0)).collect(),
             _ => vec![0.0; n],
         };
@@ -373,92 +362,6 @@ impl Fitter<'_> {
         let e = with(&r.x);
         let g = gap(self.fit, self.base, &e, self.dt_s);
         (g < before_fit).then_some((e, g))
-    }
-
-    /// The hose wall's general family: the compliances of the hysteresis
-    /// spectrum ([`HysteresisSpectrum`]) in units of 1e-13 m^3/Pa.
-    fn fit_spectrum(&self, before_fit: f64) -> Option<(Effects, f64)> {
-        const UNIT: f64 = 1e-13;
-        const N: usize = SPECTRUM_YIELDS_PA.len();
-        let with = |x: &[f64]| Effects {
-            hose_spectrum: Some(HysteresisSpectrum {
-                c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
-                stop_c_m3pp: std::array::from_fn(|i| x[N + i].max(0.0) * UNIT),
-            }),
-            ..Effects::NONE
-        };
-        self.fit_learned(2 * N, &with, None, before_fit)
-    }
-
-    /// The seals' friction in its general family ([`FrictionMap`]): the
-    /// friction at the speed knots and per MPa, in units of 10 N.
-    fn fit_friction_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
-        const UNIT_N: f64 = 10.0;
-        let with = |x: &[f64]| Effects {
-            friction_map: Some(FrictionMap {
-                force_n: std::array::from_fn(|i| x[i].max(0.0) * UNIT_N),
-                n_per_mpa: x[6].max(0.0) * UNIT_N,
-            }),
-            ..Effects::NONE
-        };
-        self.fit_learned(7, &with, None, before_fit)
-    }
-
-    /// The seals' leakage in its general family ([`LeakageMap`]): the flow
-    /// at the knots in units of 1e-7 m^3/s (1e-13 m^3/(s Pa) at 1 MPa) and
-    /// the level conductance in units of 1e-13 m^3/(s Pa).
-    fn fit_leakage_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
-        let with = |x: &[f64]| Effects {
-            leakage_map: Some(LeakageMap {
-                q_m3ps: std::array::from_fn(|i| x[i].max(0.0) * 1e-7),
-                g_m3pspa: x[5].max(0.0) * 1e-13,
-            }),
-            ..Effects::NONE
-        };
-        self.fit_learned(6, &with, None, before_fit)
-    }
-
-    /// The accumulator's general family ([`GasRelaxation`]): the weights of
-    /// the six relaxations in units of 0.02 (a total beyond
-    /// [`GAS_WEIGHT_SUM_MAX`] is scaled back onto it).
-    fn fit_gas_relaxation(&self, before_fit: f64) -> Option<(Effects, f64)> {
-        const UNIT: f64 = 0.02;
-        let with = |x: &[f64]| {
-            let w: [f64; 6] = std::array::from_fn(|i| x[i].max(0.0) * UNIT);
-            let sum: f64 = w.iter().sum();
-            let scale = if sum > GAS_WEIGHT_SUM_MAX {
-                GAS_WEIGHT_SUM_MAX / sum
-            } else {
-                1.0
-            };
-            Effects {
-                gas_relaxation: Some(GasRelaxation {
-                    weights: w.map(|v| v * scale),
-                }),
-                ..Effects::NONE
-            }
-        };
-        self.fit_learned(GAS_TAUS_S.len(), &with, None, before_fit)
-    }
-
-    /// The coupling's general family ([`ScrewMap`]): the deflection's
-    /// increments between the knots in units of 10 um (so that it never
-    /// falls), the first at least 1 nm (a map needs some compliance there).
-    fn fit_screw_map(&self, before_fit: f64) -> Option<(Effects, f64)> {
-        const UNIT_M: f64 = 1e-5;
-        let with = |x: &[f64]| {
-            let mut d = [0.0; 6];
-            let mut acc = 1e-9;
-            for (di, xi) in d.iter_mut().zip(x) {
-                acc += xi.max(0.0) * UNIT_M;
-                *di = acc;
-            }
-            Effects {
-                screw_map: Some(ScrewMap { deflection_m: d }),
-                ..Effects::NONE
-            }
-        };
-        self.fit_learned(6, &with, self.learned.screw.as_deref(), before_fit)
     }
 
     /// Fit one candidate on the fit runs: its effects and gap, the form that
@@ -581,18 +484,12 @@ pub fn estimate_params(est: &[Estimate]) -> BTreeMap<String, f64> {
 }
 
 /// Whether to fit `kind`'s general family after its named form shrank the
-/// fit runs' gap by `named_fit_shrink`: the learned families of the hose
-/// wall, the seals and the accumulator (least-squares fits of five to seven
-/// values, some 60 replays) only where the named form shows the effect at
-/// least in part (10 %); the servo's envelope gates itself on the encoder's
-/// gap ([`prefit::servo_envelope`]); the sensors' families cost one replay.
+/// fit runs' gap by `named_fit_shrink`: the learned families (of the hose
+/// wall, the seals, the coupling and the accumulator: least-squares fits of
+/// six to ten values, some 60 replays) only where the named form shows the
+/// effect at least in part (10 %); the servo's envelope gates itself on the
+/// encoder's gap ([`prefit::servo_envelope`]); the sensors' families cost
+/// one replay.
 fn worth_general(kind: EffectKind, named_fit_shrink: f64) -> bool {
-    match kind {
-        EffectKind::HoseHysteresis
-        | EffectKind::Friction
-        | EffectKind::Leakage
-        | EffectKind::AccumulatorThermal
-        | EffectKind::Backlash => named_fit_shrink >= 0.1,
-        _ => true,
-    }
+    kind.learned_len() == 0 || named_fit_shrink >= 0.1
 }

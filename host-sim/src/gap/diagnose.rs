@@ -22,7 +22,7 @@ use super::reasons;
 use super::replay::Replay;
 use super::run::Run;
 use super::stats::BANDS_HZ;
-use crate::model::effects::{EffectKind, Effects, SCREW_FORCES_N};
+use crate::model::effects::{EffectKind, Effects, GeneralFamily, ScrewMap, SCREW_FORCES_N};
 use crate::model::plant::Plant;
 
 /// Options of a diagnosis.
@@ -181,23 +181,22 @@ fn conclude(
 /// The learned general families' starting points from the closures of
 /// their equations: the coupling's deflection at the screw map's knots
 /// (the closure's odd tents over the same forces, each weight the
-/// deflection at its knot), as increments in units of 10 um.
+/// deflection at its knot), as the screw map's learned values.
 fn learned_starts(iso: &Isolation) -> LearnedStarts {
+    let mut starts = LearnedStarts::default();
     let screw = iso
         .weights(Site::CouplingIn, Dependence::Force)
         .filter(|w| w.len() == SCREW_FORCES_N.len())
-        .map(|w| {
-            let mut prev = 0.0;
-            w[1..]
-                .iter()
-                .map(|d| {
-                    let step = (d - prev).max(0.0);
-                    prev = prev.max(*d);
-                    step / 1e-5
-                })
-                .collect()
+        .and_then(|w| {
+            let map = ScrewMap {
+                deflection_m: std::array::from_fn(|i| w[i + 1]),
+            };
+            map.to_learned()
         });
-    LearnedStarts { screw }
+    if let Some(x) = screw {
+        starts.0.insert(EffectKind::Backlash, x);
+    }
+    starts
 }
 
 /// Diagnose: fit runs, check runs, the nominal plant.

@@ -103,6 +103,22 @@ impl GeneralFamily for GasRelaxation {
             .map(|(tau, w)| (format!("weight_at_tau_{tau}_s"), w))
             .collect()
     }
+    /// The weights in units of 0.02 (a total beyond
+    /// [`GAS_WEIGHT_SUM_MAX`] is scaled back onto it).
+    const LEARNED: usize = GAS_TAUS_S.len();
+    fn from_learned(x: &[f64]) -> Option<Self> {
+        const UNIT: f64 = 0.02;
+        let w: [f64; 6] = std::array::from_fn(|i| x[i].max(0.0) * UNIT);
+        let sum: f64 = w.iter().sum();
+        let scale = if sum > GAS_WEIGHT_SUM_MAX {
+            GAS_WEIGHT_SUM_MAX / sum
+        } else {
+            1.0
+        };
+        Some(Self {
+            weights: w.map(|v| v * scale),
+        })
+    }
 }
 
 /// The gas temperature T (the one state) relaxing to ambient:

@@ -83,7 +83,9 @@ pub trait NamedEffect: Copy + RigTerms {
 
 /// An effect's general family: the broader model of the same part, never on
 /// together with the named form; its terms in the rig's equations are its
-/// [`RigTerms`].
+/// [`RigTerms`]. A family the diagnosis learns by least squares
+/// (`gap/candidates.rs`) says how many values it learns and how they build
+/// it ([`GeneralFamily::LEARNED`], [`GeneralFamily::from_learned`]).
 pub trait GeneralFamily: Copy + RigTerms {
     /// The error when it is on together with its named form.
     const BOTH: &'static str;
@@ -91,8 +93,23 @@ pub trait GeneralFamily: Copy + RigTerms {
     const REQUIREMENT: &'static str;
     /// What the diagnosis's `form` says of it (`general: ...`).
     const FORM: &'static str;
+    /// How many values the diagnosis learns by least squares (each
+    /// non-negative, in a unit of the family's choosing that makes them of
+    /// order 1 to 50); 0 where it has a fit of its own.
+    const LEARNED: usize = 0;
     /// Whether its parameters satisfy [`GeneralFamily::REQUIREMENT`].
     fn family_valid(&self) -> bool;
     /// Its parameters by name for reports (names carry their units).
     fn param_map(&self) -> Vec<(String, f64)>;
+    /// The family from [`GeneralFamily::LEARNED`] learned values `x` (a
+    /// negative one counts as 0); `None` where it is not learned.
+    fn from_learned(_x: &[f64]) -> Option<Self> {
+        None
+    }
+    /// The learned values that give this family, as near as they can (a
+    /// start for the fit, e.g. from the closures of the equations); `None`
+    /// where it has none.
+    fn to_learned(&self) -> Option<Vec<f64>> {
+        None
+    }
 }

@@ -134,6 +134,31 @@ impl GeneralFamily for ScrewMap {
             .map(|(f, d)| (format!("deflection_m_at_{f:.0}_n"), d))
             .collect()
     }
+    /// The deflection's increments between the knots in units of 10 um
+    /// (so that it never falls), the first at least 1 nm (a map needs some
+    /// compliance there).
+    const LEARNED: usize = 6;
+    fn from_learned(x: &[f64]) -> Option<Self> {
+        const UNIT_M: f64 = 1e-5;
+        let mut d = [0.0; 6];
+        let mut acc = 1e-9;
+        for (di, xi) in d.iter_mut().zip(x) {
+            acc += xi.max(0.0) * UNIT_M;
+            *di = acc;
+        }
+        Some(Self { deflection_m: d })
+    }
+    /// The increments of the deflection over the running largest, in
+    /// units of 10 um.
+    fn to_learned(&self) -> Option<Vec<f64>> {
+        let mut prev = 0.0;
+        let steps = self.deflection_m.iter().map(|d| {
+            let step = (d - prev).max(0.0);
+            prev = prev.max(*d);
+            step / 1e-5
+        });
+        Some(steps.collect())
+    }
 }
 
 /// A coupling between the motor and the power piston, whose position is

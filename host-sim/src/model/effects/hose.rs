@@ -145,6 +145,16 @@ impl GeneralFamily for HysteresisSpectrum {
         m.extend(at("stop_c_m3pp", self.stop_c_m3pp));
         m
     }
+    /// The plays' compliances, then the stops', in units of 1e-13 m^3/Pa.
+    const LEARNED: usize = 2 * SPECTRUM_YIELDS_PA.len();
+    fn from_learned(x: &[f64]) -> Option<Self> {
+        const UNIT: f64 = 1e-13;
+        const N: usize = SPECTRUM_YIELDS_PA.len();
+        Some(Self {
+            c_m3pp: std::array::from_fn(|i| x[i].max(0.0) * UNIT),
+            stop_c_m3pp: std::array::from_fn(|i| x[N + i].max(0.0) * UNIT),
+        })
+    }
 }
 
 /// A hysteretic pressure per line (the states: line 1's, line 2's) whose

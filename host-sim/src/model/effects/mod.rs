@@ -36,7 +36,7 @@
 //! maps they share; everything is re-exported here. Each form carries its
 //! own catalogue entry ([`NamedEffect`]: part of the rig, parameters with
 //! their ranges, checks, report names), each general family its own
-//! ([`GeneralFamily`]), and
+//! ([`GeneralFamily`], with how the diagnosis learns it where it does), and
 //! both the terms they add to the rig's equations ([`RigTerms`]); the
 //! traits live in `catalogue` and `terms`, below the part files, and
 //! `passes` goes through every active effect for the rig. This file
@@ -60,11 +60,14 @@
 //! scale), and states of its own if it needs them ([`RigTerms::STATES`],
 //! their rest values and rates; the rig lays them out from the rows and
 //! hands each effect only its own). A general family is the same with
-//! `impl GeneralFamily`. From these follow
+//! `impl GeneralFamily`; one the diagnosis learns by least squares also
+//! says how many values it learns and how they build it
+//! ([`GeneralFamily::LEARNED`], [`GeneralFamily::from_learned`]), and the
+//! diagnosis fits it as any other (`gap/candidates.rs`). From these follow
 //! its TOML table `[plant.effects.<field>]`, `--effect <field>:...`,
 //! validation, the rig's equations ([`crate::model::rig`] calls every
 //! active effect's hooks and names none), the diagnosis's bounded fit over
-//! its parameters and its report names. A part
+//! its parameters, its general family's fit, and its report names. A part
 //! file of its own adds its `mod` and `pub use` lines beside the row.
 //!
 //! Outside these two files, on purpose: an effect that needs a place in the
@@ -72,8 +75,12 @@
 //! its pass over the active effects (in `passes`) and its one call in `rig.rs`,
 //! once for every later effect; for the diagnosis to *name* an effect, the
 //! equation and dependence it shows in must map to it in the naming table
-//! of `gap/closures.rs` (docs/gap.md's table); and a general family's
-//! learned fit lives in `gap/candidates.rs`.
+//! of `gap/closures.rs` (docs/gap.md's table); a start for a learned family
+//! read off the closures of the equations is set in `gap/diagnose.rs`
+//! (the screw map's); and the families with fits of their own keep them
+//! (the servo envelope, `gap/prefit.rs`; the sensors' families,
+//! `gap/sensor_family.rs`; `parameters`' grey-box re-estimate,
+//! `gap/grey_box.rs`).
 
 use std::collections::BTreeMap;
 
@@ -223,6 +230,19 @@ macro_rules! effects {
                 }
             }
 
+            /// How many values a least-squares fit learns for the effect's
+            /// general family ([`GeneralFamily::LEARNED`]); 0 where it has
+            /// none or one with a fit of its own.
+            pub fn learned_len(self) -> usize {
+                match self {
+                    $(Self::$kind => {
+                        $( return <$general as GeneralFamily>::LEARNED; )?
+                        #[allow(unreachable_code)]
+                        0
+                    })*
+                }
+            }
+
             /// Whether [`Effects::validate`] checks the parameters against
             /// their ranges.
             fn range_checked(self) -> bool {
@@ -316,6 +336,24 @@ macro_rules! effects {
                     )?
                 )*
                 let _ = at;
+            }
+
+            /// Only effect `k`, in its general family built from the values
+            /// `x` a least-squares fit learns ([`GeneralFamily::from_learned`]);
+            /// `None` where `k` has no learned general family.
+            pub fn learned_family(k: EffectKind, x: &[f64]) -> Option<Self> {
+                match k {
+                    $(EffectKind::$kind => {
+                        $(
+                            return <$general as GeneralFamily>::from_learned(x).map(|g| Self {
+                                $family: Some(g),
+                                ..Self::NONE
+                            });
+                        )?
+                        #[allow(unreachable_code)]
+                        None
+                    })*
+                }
             }
 
             /// Every active named form's bounds beyond its ranges.
@@ -640,6 +678,41 @@ mod tests {
                 k.params().iter().map(|p| p.typical).collect::<Vec<_>>()
             );
             e.validate().unwrap();
+        }
+    }
+
+    /// Every learned general family, from zero (the nominal model) and from
+    /// the top of the fit's range, is a valid family of its own effect,
+    /// with no other effect on; the screw map's learned values give it
+    /// back.
+    #[test]
+    fn learned_families_build_from_their_values() {
+        let mut learned = Vec::new();
+        for k in EffectKind::ALL {
+            let n = k.learned_len();
+            if n == 0 {
+                assert_eq!(Effects::learned_family(k, &[]), None, "{}", k.name());
+                continue;
+            }
+            learned.push(k);
+            for x in [0.0, 50.0] {
+                let e = Effects::learned_family(k, &vec![x; n]).unwrap();
+                assert!(e.in_general_family(k), "{}", k.name());
+                assert!(EffectKind::ALL
+                    .into_iter()
+                    .all(|o| o == k || e.param_map(o).is_empty()));
+                e.validate().unwrap();
+            }
+        }
+        assert_eq!(learned.len(), 5, "{learned:?}");
+        let x = [3.0, 0.0, 1.5, 2.0, 0.0, 7.0];
+        let screw = Effects::learned_family(EffectKind::Backlash, &x)
+            .and_then(|e| e.screw_map)
+            .unwrap();
+        let back = screw.to_learned().unwrap();
+        for (a, b) in back.iter().zip(x) {
+            // The first increment carries the map's 1 nm floor.
+            assert!((a - b).abs() < 1.1e-4, "{back:?}");
         }
     }
 

@@ -185,6 +185,15 @@ impl GeneralFamily for LeakageMap {
         }
         m
     }
+    /// The flow at the knots in units of 1e-7 m^3/s (1e-13 m^3/(s Pa) at
+    /// 1 MPa), then the level conductance in units of 1e-13 m^3/(s Pa).
+    const LEARNED: usize = 6;
+    fn from_learned(x: &[f64]) -> Option<Self> {
+        Some(Self {
+            q_m3ps: std::array::from_fn(|i| x[i].max(0.0) * 1e-7),
+            g_m3pspa: x[5].max(0.0) * 1e-13,
+        })
+    }
 }
 
 impl NamedEffect for Friction {
@@ -226,6 +235,15 @@ impl GeneralFamily for FrictionMap {
             m.push((format!("force_n_at_{:.1}_mmps", v * 1e3), x));
         }
         m
+    }
+    /// The friction at the speed knots, then per MPa, in units of 10 N.
+    const LEARNED: usize = 7;
+    fn from_learned(x: &[f64]) -> Option<Self> {
+        const UNIT_N: f64 = 10.0;
+        Some(Self {
+            force_n: std::array::from_fn(|i| x[i].max(0.0) * UNIT_N),
+            n_per_mpa: x[6].max(0.0) * UNIT_N,
+        })
     }
 }
 
