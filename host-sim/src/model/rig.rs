@@ -68,6 +68,9 @@ impl Ext {
     }
 }
 
+/// The rates of a rig's state: the plant's, then the effects' extra states'.
+pub type Rates = ([f64; N_STATES], [f64; N_EXT]);
+
 /// The state of a rig: the plant's state and the effects' extra states.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RigState {
@@ -229,16 +232,19 @@ impl Rig {
     }
 
     /// Right-hand side of the plant and of the effects' states.
-    pub fn derivative(
-        &self,
-        s: &RigState,
-        v_cmd_mps: f64,
-        ft_n: f64,
-    ) -> ([f64; N_STATES], [f64; N_EXT]) {
+    pub fn derivative(&self, s: &RigState, v_cmd_mps: f64, ft_n: f64) -> Rates {
+        let mut out = ([0.0; N_STATES], [0.0; N_EXT]);
+        self.derivative_into(s, v_cmd_mps, ft_n, &mut out);
+        out
+    }
+
+    /// [`Rig::derivative`] into `out` (the effects' rates zero before): the
+    /// steps build it in place.
+    fn derivative_into(&self, s: &RigState, v_cmd_mps: f64, ft_n: f64, out: &mut Rates) {
         let e = &self.effects;
         let p = self.plant.params();
         let ext = &s.ext.v;
-        let mut de = [0.0; N_EXT];
+        let de = &mut out.1;
         let mut x = s.x;
         // Servo (motor side): target, then the effects' limits, if any.
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
@@ -262,7 +268,7 @@ impl Rig {
             vg_m3: x.vg_m3,
             p2_pa: x.p2_pa,
         };
-        let qa = e.accumulator_flow_m3ps(gas, ext, &mut de).unwrap_or(qa_nom);
+        let qa = e.accumulator_flow_m3ps(gas, ext, de).unwrap_or(qa_nom);
         let ql = e.leak_flow_m3ps(x.p1_pa, x.p2_pa);
         let lines =
             |vp: f64, de: &mut [f64; N_EXT]| self.line_rates(ext, &x, vp, qa - qa_nom, ql, de);
@@ -274,15 +280,15 @@ impl Rig {
                 let g1 = c.compliance_mpn;
                 let df = |r: &PressureRates| p.ap1_m2 * r.dp1_paps - p.ap2_m2 * r.dp2_paps;
                 let dv = 1e-3;
-                let f0 = df(&lines(motor.1, &mut de));
-                let slope = ((df(&lines(motor.1 + dv, &mut de)) - f0) / dv).max(0.0);
+                let f0 = df(&lines(motor.1, de));
+                let slope = ((df(&lines(motor.1 + dv, de)) - f0) / dv).max(0.0);
                 let vp = motor.1 - g1 * f0 / (1.0 + g1 * slope);
-                (vp, lines(vp, &mut de))
+                (vp, lines(vp, de))
             }
-            None => (motor.1, lines(motor.1, &mut de)),
+            None => (motor.1, lines(motor.1, de)),
         };
-        e.power_piston_rates(vp, &mut de);
-        let d = [
+        e.power_piston_rates(vp, de);
+        out.0 = [
             motor.1,
             dvi,
             x.vo_mps,
@@ -295,7 +301,6 @@ impl Rig {
             r.dvs2_m3ps,
             qa,
         ];
-        (d, de)
     }
 
     /// Pressure and hose-volume rates with the power piston (position in
@@ -345,22 +350,24 @@ impl Rig {
         }
         let v = self.plant.software_limited_v_cmd(s.x.xi_m, v_cmd_mps);
         let (x0, e0) = (s.x.as_array(), s.ext.v);
-        let at = |dx: &[f64; N_STATES], de: &[f64; N_EXT], h: f64| RigState {
-            x: State::from_array(std::array::from_fn(|i| x0[i] + h * dx[i])),
+        let at = |d: &Rates, h: f64| RigState {
+            x: State::from_array(std::array::from_fn(|i| x0[i] + h * d.0[i])),
             ext: Ext {
-                v: std::array::from_fn(|i| e0[i] + h * de[i]),
+                v: std::array::from_fn(|i| e0[i] + h * d.1[i]),
             },
         };
-        let (k1, l1) = self.derivative(s, v, ft_n);
-        let (k2, l2) = self.derivative(&at(&k1, &l1, 0.5 * dt_s), v, ft_n);
-        let (k3, l3) = self.derivative(&at(&k2, &l2, 0.5 * dt_s), v, ft_n);
-        let (k4, l4) = self.derivative(&at(&k3, &l3, dt_s), v, ft_n);
+        let zero: Rates = ([0.0; N_STATES], [0.0; N_EXT]);
+        let [mut d1, mut d2, mut d3, mut d4] = [zero; 4];
+        self.derivative_into(s, v, ft_n, &mut d1);
+        self.derivative_into(&at(&d1, 0.5 * dt_s), v, ft_n, &mut d2);
+        self.derivative_into(&at(&d2, 0.5 * dt_s), v, ft_n, &mut d3);
+        self.derivative_into(&at(&d3, dt_s), v, ft_n, &mut d4);
         let sixth = dt_s / 6.0;
+        let rk4 = |y: f64, k: [f64; 4]| y + sixth * (k[0] + 2.0 * k[1] + 2.0 * k[2] + k[3]);
         s.x = State::from_array(std::array::from_fn(|i| {
-            x0[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+            rk4(x0[i], [d1.0[i], d2.0[i], d3.0[i], d4.0[i]])
         }));
-        s.ext.v =
-            std::array::from_fn(|i| e0[i] + sixth * (l1[i] + 2.0 * l2[i] + 2.0 * l3[i] + l4[i]));
+        s.ext.v = std::array::from_fn(|i| rk4(e0[i], [d1.1[i], d2.1[i], d3.1[i], d4.1[i]]));
     }
 }
 

@@ -53,7 +53,7 @@ impl RigTerms for Air {
     const ON_LINES: bool = true;
     fn add_line_compliance(&self, line: &mut Line<'_>, _own: &[f64], _rates: &mut [f64]) {
         let p = line.params;
-        line.c_m3pp += line.v_m3
-            * (compressibility_ppa(self, p.beta_e_pa, line.p_pa, p.p_atm_pa) - 1.0 / p.beta_e_pa);
+        let c = compressibility_ppa(self, p.beta_e_pa, line.p_pa, p.p_atm_pa);
+        line.add_compliance([line.v_m3 * (c - 1.0 / p.beta_e_pa)]);
     }
 }

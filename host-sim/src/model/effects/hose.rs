@@ -172,8 +172,8 @@ impl RigTerms for HoseHysteresis {
     fn add_line_compliance(&self, line: &mut Line<'_>, own: &[f64], rates: &mut [f64]) {
         let z = own[line.index];
         let engaged = hysteresis_engagement(self, z, line.dp_paps());
-        line.c_m3pp +=
-            engaged * self.c_m3pp - (1.0 - engaged) * self.stuck_share * line.c_wall_m3pp;
+        let stuck = (1.0 - engaged) * self.stuck_share * line.c_wall_m3pp;
+        line.add_compliance([engaged * self.c_m3pp - stuck]);
         rates[line.index] = hysteresis_rate(self, z, line.dp_paps());
     }
 }
@@ -186,17 +186,17 @@ impl RigTerms for HysteresisSpectrum {
     const ON_LINES: bool = true;
     fn add_line_compliance(&self, line: &mut Line<'_>, own: &[f64], rates: &mut [f64]) {
         const N: usize = SPECTRUM_YIELDS_PA.len();
-        let z = &own[N * line.index..N * (line.index + 1)];
+        let at = N * line.index;
+        let z: [f64; N] = std::array::from_fn(|i| own[at + i]);
         // Engagement from the direction before the elements act (as the
         // named form); the compliances add up.
         let dp0 = line.dp_paps();
-        for (i, zi) in z.iter().enumerate() {
-            line.c_m3pp += self.compliance_m3pp(i, *zi, dp0);
-        }
+        line.add_compliance(std::array::from_fn::<_, N, _>(|i| {
+            self.compliance_m3pp(i, z[i], dp0)
+        }));
         let dp = line.dp_paps();
-        let dz = &mut rates[N * line.index..N * (line.index + 1)];
-        for (i, (d, zi)) in dz.iter_mut().zip(z).enumerate() {
-            *d = hysteresis_rate(&self.element(i), *zi, dp);
+        for (i, zi) in z.iter().enumerate() {
+            rates[at + i] = hysteresis_rate(&self.element(i), *zi, dp);
         }
     }
 }

@@ -245,6 +245,7 @@ impl Effects {
     /// The servo's acceleration from the first active effect that models
     /// the servo ([`RigTerms::servo_accel_mps2`]); `None`: the nominal
     /// servo.
+    #[inline(always)]
     pub fn servo_accel_mps2(
         &self,
         vc_mps: f64,
@@ -262,6 +263,7 @@ impl Effects {
 
     /// Add the force every active effect puts on the actuating piston
     /// ([`RigTerms::piston_force_n`]) to `f_n`, in the rows' order.
+    #[inline(always)]
     pub fn add_piston_forces_n(&self, f_n: &mut f64, vo_mps: f64, p1_pa: f64, p2_pa: f64) {
         self.visit_active(&mut PistonForces {
             args: [vo_mps, p1_pa, p2_pa],
@@ -271,6 +273,7 @@ impl Effects {
 
     /// The flow from line 1 to line 2 every active effect lets through
     /// ([`RigTerms::leak_flow_m3ps`]), summed in the rows' order, m^3/s.
+    #[inline(always)]
     pub fn leak_flow_m3ps(&self, p1_pa: f64, p2_pa: f64) -> f64 {
         let mut v = LeakFlows {
             args: [p1_pa, p2_pa],
@@ -283,6 +286,7 @@ impl Effects {
     /// The coupling between the motor and the power piston from the first
     /// active effect that puts one ([`RigTerms::coupling`]), from the
     /// rig's extra states `ext` under the hydraulic force `f_n`.
+    #[inline(always)]
     pub fn coupling(&self, ext: &[f64], f_n: f64) -> Option<PowerPiston> {
         let mut v = Coupling {
             ext,
@@ -295,6 +299,7 @@ impl Effects {
 
     /// The rates of the states that follow the power piston, moving at
     /// `vp_mps` ([`RigTerms::power_piston_rates`]), into `rates`.
+    #[inline(always)]
     pub fn power_piston_rates(&self, vp_mps: f64, rates: &mut [f64]) {
         self.visit_active(&mut PowerPistonRates { vp_mps, rates });
     }
@@ -302,6 +307,7 @@ impl Effects {
     /// The accumulator's flow from the last active effect that changes its
     /// gas law ([`RigTerms::accumulator_flow_m3ps`]), with the rates of the
     /// states of each such effect into `rates`; `None`: the plant's.
+    #[inline(always)]
     pub fn accumulator_flow_m3ps(
         &self,
         gas: Gas<'_>,
@@ -321,6 +327,7 @@ impl Effects {
     /// Add every active effect's compliance to the line `line`
     /// ([`RigTerms::add_line_compliance`]), in the rows' order, with the
     /// rates of their states into `rates`.
+    #[inline(always)]
     pub fn add_line_compliances(&self, line: &mut Line<'_>, ext: &[f64], rates: &mut [f64]) {
         self.visit_active(&mut LineCompliances { line, ext, rates });
     }

@@ -51,9 +51,9 @@ pub struct Gas<'a> {
 /// One line's capacitance as the rig builds it up, effect by effect
 /// ([`RigTerms::add_line_compliance`]): from the explicit hose's nominal
 /// capacitance, the oil's `V / beta_e` plus the wall's `Ce(P)`, each effect
-/// adds its compliance to [`Line::c_m3pp`]; the line's pressure rate is
-/// then the nominal one scaled by the nominal over the capacitance so far
-/// ([`Line::dp_paps`]).
+/// adds its compliance ([`Line::add_compliance`]); the line's pressure rate
+/// follows, the nominal one scaled by the nominal over the capacitance so
+/// far ([`Line::dp_paps`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Line<'a> {
     /// The plant's parameters.
@@ -68,12 +68,15 @@ pub struct Line<'a> {
     pub c_oil_m3pp: f64,
     /// The hose wall's part of the nominal capacitance, `Ce(P)`, m^3/Pa.
     pub c_wall_m3pp: f64,
-    /// The capacitance with the effects so far, m^3/Pa.
-    pub c_m3pp: f64,
     /// The nominal capacitance, m^3/Pa.
     c_nom_m3pp: f64,
     /// The pressure rate with the nominal capacitance, Pa/s.
     dp_nom_paps: f64,
+    /// The capacitance with the effects so far, m^3/Pa.
+    c_m3pp: f64,
+    /// The pressure rate with it, Pa/s, once asked for (`None` since the
+    /// capacitance last changed: each is computed once, when read).
+    dp_paps: Option<f64>,
 }
 
 impl<'a> Line<'a> {
@@ -95,15 +98,35 @@ impl<'a> Line<'a> {
             v_m3,
             c_oil_m3pp,
             c_wall_m3pp,
-            c_m3pp: c_nom_m3pp,
             c_nom_m3pp,
             dp_nom_paps,
+            c_m3pp: c_nom_m3pp,
+            dp_paps: None,
         }
     }
 
-    /// The line's pressure rate with the capacitance so far, Pa/s.
-    pub fn dp_paps(&self) -> f64 {
-        self.dp_nom_paps * self.c_nom_m3pp / self.c_m3pp
+    /// The capacitance with the effects so far, m^3/Pa.
+    pub fn c_m3pp(&self) -> f64 {
+        self.c_m3pp
+    }
+
+    /// The line's pressure rate with the capacitance so far, Pa/s: the
+    /// nominal rate times the nominal capacitance over it.
+    pub fn dp_paps(&mut self) -> f64 {
+        if let Some(dp) = self.dp_paps {
+            return dp;
+        }
+        let dp = self.dp_nom_paps * self.c_nom_m3pp / self.c_m3pp;
+        self.dp_paps = Some(dp);
+        dp
+    }
+
+    /// Add the compliances `dc_m3pp`, m^3/Pa, to the capacitance in turn.
+    pub fn add_compliance(&mut self, dc_m3pp: impl IntoIterator<Item = f64>) {
+        for dc in dc_m3pp {
+            self.c_m3pp += dc;
+        }
+        self.dp_paps = None;
     }
 }
 
