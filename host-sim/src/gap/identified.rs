@@ -48,34 +48,41 @@ pub fn wide_fit(d: &Diagnosis, details: &Details, dt_s: f64) -> Option<WideFit> 
     wide::confirmed(&w, d.check.after, d.check.before).then_some(w)
 }
 
+/// What the rig file's header says of a wide fit `w` that replaced the
+/// verdict's rig.
+fn wide_trust(details: &Details, w: &WideFit) -> String {
+    let with_effect = details
+        .effects
+        .active()
+        .iter()
+        .any(|k| *k != EffectKind::Parameters);
+    format!(
+        "{}the rig's parameters fitted widely for tuning (the verdict's model alone left more \
+         on the check runs); gap with them: fit runs {}, check runs {}",
+        if with_effect {
+            "the verdict's effect with its fitted parameters, and "
+        } else {
+            ""
+        },
+        Num(w.fit_gap),
+        Num(w.check_gap)
+    )
+}
+
 /// The rig file's text: [`rig`] under a header that says where it comes
 /// from and how far it is to be trusted.
 pub fn rig_text(d: &Diagnosis, details: &Details, wide: Option<&WideFit>, runs: &str) -> String {
-    let trust =
-        match (d.verdict, wide) {
-            (Verdict::None, _) => {
-                "the runs agree with the nominal model within their noise: the nominal rig".into()
-            }
-            (_, Some(w)) => {
-                format!(
-            "{}the rig's parameters fitted widely for tuning (the verdict's model alone left \
-             more on the check runs); gap with them: fit runs {}, check runs {}",
-            if details.effects.active().iter().any(|k| *k != EffectKind::Parameters) {
-                "the verdict's effect with its fitted parameters, and "
-            } else {
-                ""
-            },
-            Num(w.fit_gap),
-            Num(w.check_gap)
-        )
-            }
-            (Verdict::Unexplained, None) => {
-                "no effect explained the gap: the nominal rig (the gap remains; see the report)"
-                    .into()
-            }
-            (Verdict::Effect(EffectKind::Parameters), None) => "the re-estimated parameters".into(),
-            (Verdict::Effect(_), None) => "the verdict's effect with its fitted parameters".into(),
-        };
+    let trust = match (d.verdict, wide) {
+        (Verdict::None, _) => {
+            "the runs agree with the nominal model within their noise: the nominal rig".into()
+        }
+        (_, Some(w)) => wide_trust(details, w),
+        (Verdict::Unexplained, None) => {
+            "no effect explained the gap: the nominal rig (the gap remains; see the report)".into()
+        }
+        (Verdict::Effect(EffectKind::Parameters), None) => "the re-estimated parameters".into(),
+        (Verdict::Effect(_), None) => "the verdict's effect with its fitted parameters".into(),
+    };
     let header = format!(
         "The rig as `host-sim gap` identified it ({runs}).\n\
          Verdict: {} - {trust}.\n\

@@ -1,26 +1,25 @@
 //! The rig's parameters identified for commissioning (`gap --rig-out`):
 //! a wide least-squares fit of the plant's parameters, not a verdict.
 //!
-//! The verdict's effect, if any, stays on while the parameters move around
-//! it.
-//!
 //! The verdict's `parameters` candidate ([`super::grey_box`]) re-estimates
 //! at most three of seven ratios: a small, identifiable subset, so that a
 //! name is given only where a few parameters explain the gap. A rig built
 //! within its tolerances has every parameter a little off, which that
 //! subset cannot follow, and its verdict is then `unexplained`. A
 //! controller tuned for such a rig needs its parameters all the same. This
-//! fit gives them: the ratios of the [`GROUPS`] (each scaling its keys of
+//! fit gives them, with the verdict's effect, if any, left on: the ratios
+//! of the [`GROUPS`] (each scaling its keys of
 //! [`crate::model::params::KEYS`] together), fitted as ln(ratio) within
 //! [`BOUNDS`] from the nominal rig by Levenberg-Marquardt on the fit runs'
-//! block-mean residuals ([`super::lsq::residuals`]) with a prior toward the
-//! nominal values ([`PRIOR_SIGMA_LN`]), lightened in [`PRIOR_SCALES`] steps,
-//! at most [`ITERS`] Jacobians each. It is kept only where the held-out check runs confirm it: its
-//! gap there at most (1 - [`MARGIN`]) times that of the rig the verdict
-//! identified, and below the nominal model's.
+//! block-mean residuals ([`super::lsq::residuals`]) with a prior toward
+//! the nominal values ([`PRIOR_SIGMA_LN`]) lightened in [`PRIOR_SCALES`]
+//! steps, at most [`ITERS`] Jacobians each. It is kept only where the
+//! held-out check runs confirm it ([`confirmed`]): its gap there at most
+//! (1 - [`MARGIN`]) times that of the rig the verdict identified, and below
+//! the nominal model's.
 //!
 //! Parameters the runs do not excite stay near their nominal values (the
-//! damping of the steps keeps them there); the rig file says which moved.
+//! prior holds them there); the rig file lists those that moved.
 
 use super::lsq::{self, levenberg_marquardt};
 use super::measure::gap;
