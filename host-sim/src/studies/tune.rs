@@ -8,7 +8,7 @@
 //!    hold exactly what the host runs. The search starts from that design,
 //!    or where it costs more on the rig than the nominal design, from the
 //!    first of [`DESIGN_SHARES`] toward the nominal one that does not
-//!    ([`design_start`]): the `limit` settings designed on a rig's own
+//!    (`design_start`): the `limit` settings designed on a rig's own
 //!    parameters can limit-cycle on it.
 //! 2. **Search.** The settings that decide the response on a given rig
 //!    ([`Knob`]: for `cmpc-eso` the acceleration limit, the compliance
@@ -271,7 +271,7 @@ pub fn design_model(rig: &PlantParams) -> PlantParams {
 }
 
 /// How far the design model may move from the nominal one toward the
-/// rig's, tried in this order before the search ([`design_start`]).
+/// rig's, tried in this order before the search (`design_start`).
 pub const DESIGN_SHARES: [f64; 5] = [1.0, 0.75, 0.5, 0.25, 0.0];
 
 /// The design model `design` moved back toward the nominal one: each of
