@@ -275,8 +275,12 @@ pub fn design_model(rig: &PlantParams) -> PlantParams {
 pub const DESIGN_SHARES: [f64; 5] = [1.0, 0.75, 0.5, 0.25, 0.0];
 
 /// The design model `design` moved back toward the nominal one: each of
-/// the [`MODEL_KEYS`] nominal x (design / nominal)^`share`.
+/// the [`MODEL_KEYS`] nominal x (design / nominal)^`share` (exactly
+/// `design` at share 1; a key not positive in both stays `design`'s).
 fn design_share(design: &PlantParams, share: f64) -> PlantParams {
+    if share == 1.0 {
+        return *design;
+    }
     let mut p = *design;
     for k in MODEL_KEYS.iter().filter_map(|n| params::find(n)) {
         let nominal = k.get(&PlantParams::NOMINAL);
