@@ -182,26 +182,26 @@ impl Visit for LineCompliances<'_, '_> {
 }
 
 impl Effects {
-    /// Whether any active effect adds compliance to the lines
-    /// ([`RigTerms::ON_LINES`]).
-    pub fn on_lines(&self) -> bool {
+    /// What the active effects change, in one pass.
+    fn any(&self) -> Any {
         let mut any = Any {
             lines: false,
             equations: false,
         };
         self.visit_active(&mut any);
-        any.lines
+        any
+    }
+
+    /// Whether any active effect adds compliance to the lines
+    /// ([`RigTerms::ON_LINES`]).
+    pub fn on_lines(&self) -> bool {
+        self.any().lines
     }
 
     /// Whether any active effect changes the rig's equations
     /// ([`RigTerms::ON_EQUATIONS`]).
     pub fn on_equations(&self) -> bool {
-        let mut any = Any {
-            lines: false,
-            equations: false,
-        };
-        self.visit_active(&mut any);
-        any.equations
+        self.any().equations
     }
 
     /// The plant parameters the active effects change from `base`
