@@ -34,7 +34,9 @@ impl Progress {
                 .expect("valid template"),
         );
         bar.set_message(what.to_string());
-        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        if show {
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
         Self(bar)
     }
 
