@@ -137,6 +137,11 @@ fn conclude(
                         .total_cmp(&b.candidate.check_shrink)
                 });
             let mut r = reasons::located(iso);
+            if let Some(res) = iso.parameters_in_one_equation() {
+                if !iso.allows(chosen.kind) {
+                    r.push_str(&reasons::one_equation(res));
+                }
+            }
             r.push_str(&reasons::explained(
                 &chosen.candidate,
                 runner_up.map(|x| &x.candidate),
@@ -242,8 +247,20 @@ pub fn diagnose(
     // `parameters` only where its re-estimate on the check runs agrees.
     let outside = iso.outside_best();
     let params_agree = !outside && parameters_agree(&n, &iso, &ranked, &check, base, opts.dt_s);
-    let allowed =
-        |k: EffectKind| !outside && iso.allows(k) && (k != EffectKind::Parameters || params_agree);
+    // Where the best closure scales the parameters of one equation alone
+    // and their re-estimate does not hold, the equation is located but not
+    // the form: the effects its other closures name may be named, the
+    // replayed models deciding.
+    let one_equation = iso
+        .parameters_in_one_equation()
+        .filter(|_| !outside && !params_agree);
+    let in_equation =
+        |k: EffectKind| one_equation.is_some_and(|r| iso.named_in_residual(r).any(|x| x == k));
+    let allowed = |k: EffectKind| {
+        !outside
+            && (iso.allows(k) || in_equation(k))
+            && (k != EffectKind::Parameters || params_agree)
+    };
     let (decision, pair, partial) = verdict(&fitter, &n, &mut ranked, &allowed, opts);
     let c = conclude(&n, &ranked, pair.as_ref(), &decision, &iso, partial);
     // The report's replays with the verdict's effects.

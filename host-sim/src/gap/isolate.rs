@@ -56,6 +56,14 @@ pub const COMPARABLE_REL: f64 = 0.25;
 /// decide between them.
 pub const SAME_EQUATION_FACTOR: f64 = 1.5;
 
+/// Share of the best closure's gain on the fit runs that one residual must
+/// hold for a `parameters` closure to be read as that equation's violation
+/// ([`Isolation::parameters_in_one_equation`]).
+pub const ONE_EQUATION_SHARE: f64 = 0.9;
+/// Share of a residual's excess on the fit runs a closure must explain to
+/// count among that residual's closures.
+pub const IN_RESIDUAL_SHARE: f64 = 0.1;
+
 /// Whether a closure that leaves `left` is comparable to the best, which
 /// leaves `best`.
 pub fn comparable(left: f64, best: f64) -> bool {
@@ -123,6 +131,34 @@ impl Isolation {
             .any(|c| c.closure.names() == Some(k))
     }
 
+    /// Where the best closure re-scales the nominal parameters but holds
+    /// its gain (at least [`ONE_EQUATION_SHARE`] of it, on the fit runs) in
+    /// one residual: that residual's index. Scaling one equation's own terms
+    /// then says where, not which form: an effect with memory (a speed
+    /// loop's integrator winding up) is no function of the closures'
+    /// variables, and its linear closure may fit the check runs worse than a
+    /// rescaled time constant while its replayed model explains them.
+    pub fn parameters_in_one_equation(&self) -> Option<usize> {
+        let b = self.best()?;
+        if b.closure.site != Site::Parameters {
+            return None;
+        }
+        let total: f64 = b.fit_per_residual.iter().map(|x| x.max(0.0)).sum();
+        let d = b.dominant();
+        (total > 0.0 && b.fit_per_residual[d] >= ONE_EQUATION_SHARE * total).then_some(d)
+    }
+
+    /// The effects other than `parameters` that closures of residual `r`
+    /// name (each explaining at least [`IN_RESIDUAL_SHARE`] of its excess on
+    /// the fit runs, and most in it).
+    pub fn named_in_residual(&self, r: usize) -> impl Iterator<Item = EffectKind> + '_ {
+        self.closures
+            .iter()
+            .filter(move |c| c.dominant() == r && c.fit_per_residual[r] >= IN_RESIDUAL_SHARE)
+            .filter_map(|c| c.closure.names())
+            .filter(|k| *k != EffectKind::Parameters)
+    }
+
     /// Whether the best closure lies outside the catalogue (a force over
     /// the load's position, a drift): no effect of the catalogue is then
     /// named, whatever the others explain.
@@ -131,9 +167,10 @@ impl Isolation {
     }
 
     /// The effects worth fitting as models: those a verdict may name
-    /// ([`Isolation::allows`]), and the first three effects the best closures name (the
-    /// best partial candidates of an `unexplained`), in
-    /// [`EffectKind::ALL`] order.
+    /// ([`Isolation::allows`]), the first three effects the best closures
+    /// name (the best partial candidates of an `unexplained`), and where a
+    /// `parameters` closure holds its gain in one residual, the effects
+    /// that residual's closures name; in [`EffectKind::ALL`] order.
     pub fn to_fit(&self) -> Vec<EffectKind> {
         let mut best3: Vec<EffectKind> = Vec::new();
         for k in self.closures.iter().filter_map(|c| c.closure.names()) {
@@ -144,9 +181,11 @@ impl Isolation {
                 best3.push(k);
             }
         }
+        let one = self.parameters_in_one_equation();
+        let in_one = |k: EffectKind| one.is_some_and(|r| self.named_in_residual(r).any(|x| x == k));
         EffectKind::ALL
             .into_iter()
-            .filter(|k| best3.contains(k) || self.allows(*k))
+            .filter(|k| best3.contains(k) || self.allows(*k) || in_one(*k))
             .collect()
     }
 

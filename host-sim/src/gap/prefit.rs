@@ -10,9 +10,10 @@
 //! full-model fit then starts there.
 
 use super::fit::{minimize, Bound};
+use super::lsq;
 use super::run::Run;
 use crate::model::effects::{
-    self, EffectKind, MotorLimit, Servo, ServoEnvelope, ENVELOPE_SPEEDS_MPS,
+    self, EffectKind, MotorLimit, Servo, ServoEnvelope, SpeedLoop, ENVELOPE_SPEEDS_MPS,
 };
 use crate::model::plant::Plant;
 
@@ -26,9 +27,16 @@ const MOTOR_FORCE: Bound = Bound { lo: 50.0, hi: 1e5 };
 /// error allows).
 const FLAT_TOL: f64 = 0.05;
 
-/// Squared Xi error (in units of the run's Xi scale) of the servo model
-/// `servo` on one run; stops early once above `stop`.
-fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, fine: bool, stop: f64) -> f64 {
+/// The Xi error (in units of the run's Xi scale) of the servo model `servo`
+/// on one run, row by row, handed to `each` until it returns false; false
+/// where the model diverged.
+fn servo_track(
+    run: &Run,
+    plant: &Plant,
+    servo: Servo<'_>,
+    fine: bool,
+    mut each: impl FnMut(f64) -> bool,
+) -> bool {
     let p = plant.params();
     let log = &run.log;
     let n = log.len();
@@ -43,31 +51,64 @@ fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, fine: bool, stop: f64
     };
     let h = log.dt_s() / sub as f64;
     let (mut xi, mut vi) = (log.xi_m[0], 0.0);
-    let mut err = 0.0;
+    // The servo's own states (a speed loop's reference and integrator),
+    // at rest with the integrator holding the load.
+    let mut own = [0.0, plant.piston_force_n(log.p1_pa[0], log.p2_pa[0])];
     for k in 0..n {
-        let d = (log.xi_m[k] - xi) / scale;
-        err += d * d;
-        if err > stop {
-            return err;
+        if !each((log.xi_m[k] - xi) / scale) {
+            return true;
         }
         let f = plant.piston_force_n(log.p1_pa[k], log.p2_pa[k]);
         let vc = plant
             .software_limited_v_cmd(xi, log.vcmd_mps[k])
             .clamp(-p.v_max_mps, p.v_max_mps);
-        let accel = |v: f64| effects::servo_accel(servo, vc, v, p.tau_m_s, f);
+        let rates = |v: f64, own: [f64; 2]| effects::servo_rates(servo, (vc, p.tau_m_s), v, f, own);
         for _ in 0..sub {
-            // Midpoint rule on (xi, vi); the servo's time constant is 20 steps.
-            let a1 = accel(vi);
+            // Midpoint rule on (xi, vi, own); the servo's time constant is
+            // 20 steps.
+            let (a1, d1) = rates(vi, own);
             let vm = vi + 0.5 * h * a1;
-            let a2 = accel(vm);
+            let om = [own[0] + 0.5 * h * d1[0], own[1] + 0.5 * h * d1[1]];
+            let (a2, d2) = rates(vm, om);
             xi += h * vm;
             vi += h * a2;
+            own = [own[0] + h * d2[0], own[1] + h * d2[1]];
         }
         if !(xi.is_finite() && vi.is_finite()) {
-            return f64::INFINITY;
+            return false;
         }
     }
-    err
+    true
+}
+
+/// Squared Xi error (in units of the run's Xi scale) of the servo model
+/// `servo` on one run; stops early once above `stop`.
+fn servo_error(run: &Run, plant: &Plant, servo: Servo<'_>, fine: bool, stop: f64) -> f64 {
+    let mut err = 0.0;
+    let finite = servo_track(run, plant, servo, fine, |d| {
+        err += d * d;
+        err <= stop
+    });
+    if finite {
+        err
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The Xi errors of the servo model `servo` over `runs`, row by row (fine
+/// steps); `None` where it diverged.
+fn servo_residuals(runs: &[Run], plant: &Plant, servo: Servo<'_>) -> Option<Vec<f64>> {
+    let mut r = Vec::new();
+    for run in runs {
+        if !servo_track(run, plant, servo, true, |d| {
+            r.push(d);
+            true
+        }) {
+            return None;
+        }
+    }
+    Some(r)
 }
 
 /// Squared Xi error of the servo model over `runs` (see [`motor_limit`]).
@@ -191,6 +232,8 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
 /// over. The best mass is
 /// refined on a finer axis around it, and Nelder-Mead polishes the result.
 /// Knots the runs never reach stay at the force of the knot before (flat).
+/// A ramp of the drive is tried under the result, and the drive's own speed
+/// loop ([`SpeedLoop`]) in a search of its own.
 pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64, f64)> {
     let nominal = total_error(runs, plant, Servo::Nominal, true, f64::INFINITY);
     // Only where the gap is in the servo: the nominal servo leaves Xi off by
@@ -203,36 +246,50 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
         runs,
         plant,
         ramp: None,
+        speed_loop: None,
     };
-    let (e, m, a) = search.fit(nominal, [MOTOR_FORCE.at(0.5); K])?;
-    // A ramp of the drive: each on a log axis under the found mass and
-    // forces (knot by knot again); under the best one the masses around
-    // and the ramp between its neighbours, kept only where it lowers the
-    // error clearly.
-    let mut best_ramp: Option<(f64, f64, [f64; K])> = None;
-    for ramp in log_axis(RAMP_MPS2.0, RAMP_MPS2.1, RAMP_STEPS) {
-        let (er, ar) = search.ramped(ramp).knots(m, a);
-        if best_ramp.is_none_or(|(best, _, _)| er < best) {
-            best_ramp = Some((er, ramp, ar));
-        }
-    }
-    let with_ramp = best_ramp.and_then(|(er, ramp, ar)| {
-        let (er, mr, ar) = search.ramped(ramp).around(m, ar, er);
-        // The ramp itself between its neighbours on the axis, the rest
-        // held, then the envelope polished under it.
-        let step = (RAMP_MPS2.1 / RAMP_MPS2.0).ln() / (RAMP_STEPS - 1) as f64;
-        let at_ln = |u: f64, stop: f64| search.ramped(u.exp()).error(mr, &ar, stop);
-        let (e_line, u) = golden_line(&at_ln, ramp.ln() - step, ramp.ln() + step, 5);
-        let ramp = if e_line < er { u.exp() } else { ramp };
-        let under = search.ramped(ramp);
-        let (er, mr, ar) = under.polish((under.error(mr, &ar, f64::INFINITY), mr, ar));
-        (er < (1.0 - RAMP_GAIN) * e).then(|| (er, envelope(mr, &ar, Some(ramp))))
-    });
-    Some(match with_ramp {
-        Some((er, env)) => (env, er, nominal),
-        None => (envelope(m, &a, None), e, nominal),
-    })
+    let plain = search
+        .fit(nominal, [MOTOR_FORCE.at(0.5); K])
+        .map(|(e, m, a)| search.with_ramp(e, m, a));
+    // The drive's own speed loop: searched on its own (an envelope fitted
+    // without it stands in for it far from its values), kept where it
+    // removes LOOP_GAIN of the best error so far; searched only where the
+    // best envelope leaves the encoder off by more than twice its scale
+    // (RMS).
+    let best = plain.map_or(nominal, |p| p.0);
+    let looped = (best > LOOP_NEEDS * samples as f64)
+        .then(|| search.with_loop())
+        .flatten()
+        .filter(|(el, _)| *el < (1.0 - LOOP_GAIN) * best);
+    let (e, env) = looped.or(plain)?;
+    Some((env, e, nominal))
 }
+
+/// Squared Xi error per sample (in scale units) above which an envelope
+/// leaves room for the drive's speed loop (twice the scale, RMS).
+const LOOP_NEEDS: f64 = 4.0;
+/// Share of the best error so far the drive's speed loop must remove to be
+/// kept.
+const LOOP_GAIN: f64 = 0.2;
+/// Bandwidths of the drive's speed loop, rad/s: from the nominal servo's
+/// (100 rad/s) to the limit.
+const LOOP_BANDWIDTH: Bound = Bound {
+    lo: 100.0,
+    hi: SpeedLoop::BANDWIDTH_MAX_RADPS,
+};
+/// The loop of the first search: bandwidth, rad/s, and integral corner as
+/// a share of it.
+const LOOP_START: (f64, f64) = (1000.0, 0.3);
+/// The screw's viscous losses of the loop's first search, N s/m (at
+/// 0.1 m/s, from none to 800 N).
+const LOOP_DAMPING_NSPM: [f64; 5] = [0.0, 1000.0, 2500.0, 5000.0, 8000.0];
+/// Masses of the loop's first search (a log axis from twice
+/// [`MOTOR_MASS`]'s lowest to 1 t).
+const LOOP_MASSES: usize = 9;
+/// Grid points (the best per mass) the loop's polish starts from.
+const LOOP_STARTS: usize = 3;
+/// Jacobians of each Levenberg-Marquardt polish of the loop.
+const LOOP_ITERS: usize = 30;
 
 /// Ramps of the drive tried, m/s^2 (a log axis between): from a crawl to
 /// beyond what the nominal speed loop asks for a full-speed step.
@@ -246,7 +303,8 @@ const RAMP_GAIN: f64 = 0.2;
 const K: usize = ENVELOPE_SPEEDS_MPS.len();
 
 /// The envelope of mass `m` and knot forces `a`, each knot capped by the one
-/// before (the envelope never rises with speed) and at least 0.
+/// before (the envelope never rises with speed) and at least 0, with the
+/// ramp `ramp` and no speed loop.
 fn envelope(m: f64, a: &[f64], ramp: Option<f64>) -> ServoEnvelope {
     let mut f = [a[0]; K];
     for k in 1..K {
@@ -256,6 +314,7 @@ fn envelope(m: f64, a: &[f64], ramp: Option<f64>) -> ServoEnvelope {
         mass_eq_kg: m,
         force_n: f,
         accel_max_mps2: ramp,
+        speed_loop: None,
     }
 }
 
@@ -307,6 +366,8 @@ struct EnvelopeSearch<'a> {
     plant: &'a Plant,
     /// The drive's ramp the envelopes are tried with.
     ramp: Option<f64>,
+    /// The drive's speed loop they are tried with.
+    speed_loop: Option<SpeedLoop>,
 }
 
 impl EnvelopeSearch<'_> {
@@ -350,10 +411,181 @@ impl EnvelopeSearch<'_> {
         self.polish(best)
     }
 
+    /// A ramp of the drive under the envelope of mass `m` and forces `a`
+    /// (error `e` without it): each ramp on a log axis (knot by knot again);
+    /// under the best one the masses around and the ramp between its
+    /// neighbours, kept only where it lowers the error clearly. The error
+    /// and the envelope, ramped or not.
+    fn with_ramp(&self, e: f64, m: f64, a: [f64; K]) -> (f64, ServoEnvelope) {
+        let mut best_ramp: Option<(f64, f64, [f64; K])> = None;
+        for ramp in log_axis(RAMP_MPS2.0, RAMP_MPS2.1, RAMP_STEPS) {
+            let (er, ar) = self.ramped(ramp).knots(m, a);
+            if best_ramp.is_none_or(|(best, _, _)| er < best) {
+                best_ramp = Some((er, ramp, ar));
+            }
+        }
+        let with_ramp = best_ramp.and_then(|(er, ramp, ar)| {
+            let (er, mr, ar) = self.ramped(ramp).around(m, ar, er);
+            // The ramp itself between its neighbours on the axis, the rest
+            // held, then the envelope polished under it.
+            let step = (RAMP_MPS2.1 / RAMP_MPS2.0).ln() / (RAMP_STEPS - 1) as f64;
+            let at_ln = |u: f64, stop: f64| self.ramped(u.exp()).error(mr, &ar, stop);
+            let (e_line, u) = golden_line(&at_ln, ramp.ln() - step, ramp.ln() + step, 5);
+            let ramp = if e_line < er { u.exp() } else { ramp };
+            let under = self.ramped(ramp);
+            let (er, mr, ar) = under.polish((under.error(mr, &ar, f64::INFINITY), mr, ar));
+            (er < (1.0 - RAMP_GAIN) * e).then(|| (er, envelope(mr, &ar, Some(ramp))))
+        });
+        with_ramp.unwrap_or((e, envelope(m, &a, None)))
+    }
+
+    /// The same search under the speed loop `lp`.
+    fn looped(self, lp: SpeedLoop) -> Self {
+        Self {
+            speed_loop: Some(lp),
+            ..self
+        }
+    }
+
+    /// The drive's own speed loop ([`SpeedLoop`]), searched on its own
+    /// under a flat envelope, the screw's viscous loss taking force with
+    /// speed. With and without windup, the loop at [`LOOP_START`]: over a
+    /// log axis of masses and the losses [`LOOP_DAMPING_NSPM`], the force on
+    /// a golden line for each (the narrow direction); from the best
+    /// [`LOOP_STARTS`] masses, Levenberg-Marquardt on the encoder's errors
+    /// over mass, force, loss, bandwidth and corner ([`Self::loop_lm`]: the
+    /// valley is too narrow for Nelder-Mead); then the knots under the best loop
+    /// ([`Self::knots`]) where they lower its error, and its two rates once
+    /// more ([`Self::loop_rates`]). The error and the envelope.
+    fn with_loop(&self) -> Option<(f64, ServoEnvelope)> {
+        let (bw, share) = LOOP_START;
+        let bounds = [
+            MOTOR_MASS,
+            MOTOR_FORCE,
+            Bound {
+                lo: 0.0,
+                hi: LOOP_DAMPING_NSPM[LOOP_DAMPING_NSPM.len() - 1] * 2.0,
+            },
+            LOOP_BANDWIDTH,
+            Bound {
+                lo: 1.0,
+                hi: LOOP_BANDWIDTH.hi,
+            },
+        ];
+        let mut polished: Option<(f64, Vec<f64>, SpeedLoop)> = None;
+        for windup in [true, false] {
+            let make = |x: &[f64]| SpeedLoop {
+                bandwidth_radps: x[3],
+                integral_radps: x[4].min(x[3]),
+                windup,
+                damping_nspm: x[2],
+            };
+            // The best point of the grid per mass, the best masses first.
+            let mut grid: Vec<(f64, [f64; 3])> = Vec::new();
+            for m in log_axis(MOTOR_MASS.lo * 2.0, 1e3, LOOP_MASSES) {
+                let mut at_m: Option<(f64, [f64; 3])> = None;
+                for c in LOOP_DAMPING_NSPM {
+                    let under = self.looped(make(&[m, 0.0, c, bw, share * bw]));
+                    let line = |u: f64, stop: f64| under.error(m, &[MOTOR_FORCE.at(u); K], stop);
+                    let (e, u) = golden_line(&line, 0.0, 1.0, 15);
+                    if at_m.is_none_or(|b| e < b.0) {
+                        at_m = Some((e, [m, MOTOR_FORCE.at(u), c]));
+                    }
+                }
+                grid.extend(at_m);
+            }
+            grid.sort_by(|a, b| a.0.total_cmp(&b.0));
+            for (e0, [m, f, c]) in grid.into_iter().take(LOOP_STARTS) {
+                let x0 = [m, f, c, bw, share * bw];
+                let (e, x) = match self.loop_lm(&x0, &bounds, windup) {
+                    Some((e, x)) if e < e0 => (e, x),
+                    _ => (e0, x0.to_vec()),
+                };
+                if polished.as_ref().is_none_or(|p| e < p.0) {
+                    polished = Some((e, x.clone(), make(&x)));
+                }
+            }
+        }
+        let (e, x, lp) = polished?;
+        let m = x[0];
+        let (e, a) = match self.looped(lp).knots(m, [x[1]; K]) {
+            (ek, a) if ek < e => (ek, a),
+            _ => (e, [x[1]; K]),
+        };
+        let (e, lp) = self.loop_rates(m, &a, (e, lp));
+        let mut env = envelope(m, &a, self.ramp);
+        env.speed_loop = Some(lp);
+        e.is_finite().then_some((e, env))
+    }
+
+    /// Levenberg-Marquardt on the Xi errors over the loop's mass, force,
+    /// loss, bandwidth and corner (`x0`, within `bounds`; the forces and
+    /// rates in log scale, the loss in kN s/m) under a flat envelope: the
+    /// squared error and the values.
+    fn loop_lm(&self, x0: &[f64; 5], bounds: &[Bound; 5], windup: bool) -> Option<(f64, Vec<f64>)> {
+        const LOG: [bool; 5] = [true, true, false, true, true];
+        let to_u = |x: f64, i: usize| if LOG[i] { x.ln() } else { x / 1e3 };
+        let of_u = |u: f64, i: usize| if LOG[i] { u.exp() } else { u * 1e3 };
+        let f = |u: &[f64]| {
+            let x: Vec<f64> = (0..5).map(|i| of_u(u[i], i)).collect();
+            let lp = SpeedLoop {
+                bandwidth_radps: x[3],
+                integral_radps: x[4].min(x[3]),
+                windup,
+                damping_nspm: x[2],
+            };
+            let mut s = envelope(x[0], &[x[1]; K], self.ramp);
+            s.speed_loop = Some(lp);
+            if !s.is_valid() {
+                return None;
+            }
+            servo_residuals(self.runs, self.plant, Servo::Envelope(&s))
+        };
+        let u0: Vec<f64> = (0..5).map(|i| to_u(x0[i], i)).collect();
+        let lo: Vec<f64> = (0..5).map(|i| to_u(bounds[i].lo.max(1e-3), i)).collect();
+        let hi: Vec<f64> = (0..5).map(|i| to_u(bounds[i].hi, i)).collect();
+        let r = lsq::levenberg_marquardt(&f, &u0, None, &[1e-3; 5], &lo, &hi, LOOP_ITERS)?;
+        Some((r.rss, (0..5).map(|i| of_u(r.x[i], i)).collect()))
+    }
+
+    /// The loop's bandwidth, then its integral corner, each on a golden
+    /// line in log scale (a factor of 3 either way) under the envelope of
+    /// mass `m` and forces `a`, from `best` (error, loop).
+    fn loop_rates(&self, m: f64, a: &[f64], best: (f64, SpeedLoop)) -> (f64, SpeedLoop) {
+        let (mut e, mut lp) = best;
+        let span = 3f64.ln();
+        let bw = |u: f64, stop: f64| {
+            let mut l = lp;
+            l.bandwidth_radps = u.exp().min(SpeedLoop::BANDWIDTH_MAX_RADPS);
+            l.integral_radps = l.integral_radps.min(l.bandwidth_radps);
+            self.looped(l).error(m, a, stop)
+        };
+        let u0 = lp.bandwidth_radps.ln();
+        let (eb, u) = golden_line(&bw, u0 - span, u0 + span, 5);
+        if eb < e {
+            e = eb;
+            lp.bandwidth_radps = u.exp().min(SpeedLoop::BANDWIDTH_MAX_RADPS);
+            lp.integral_radps = lp.integral_radps.min(lp.bandwidth_radps);
+        }
+        let ki = |u: f64, stop: f64| {
+            let mut l = lp;
+            l.integral_radps = u.exp().min(l.bandwidth_radps);
+            self.looped(l).error(m, a, stop)
+        };
+        let u0 = lp.integral_radps.max(1e-3).ln();
+        let (ei, u) = golden_line(&ki, u0 - span, u0 + span, 5);
+        if ei < e {
+            e = ei;
+            lp.integral_radps = u.exp().min(lp.bandwidth_radps);
+        }
+        (e, lp)
+    }
+
     /// Squared Xi error of the envelope (mass `m`, forces `a`), stopping
     /// early above `stop`; infinite for an invalid envelope.
     fn error(&self, m: f64, a: &[f64], stop: f64) -> f64 {
-        let s = envelope(m, a, self.ramp);
+        let mut s = envelope(m, a, self.ramp);
+        s.speed_loop = self.speed_loop;
         if !s.is_valid() {
             return f64::INFINITY;
         }
@@ -508,6 +740,36 @@ mod tests {
         )
     }
 
+    /// A drive whose own PI speed loop winds up while its current limit
+    /// holds it back, with a screw losing force to speed: the loop's
+    /// search finds it (its integrator winding up, mass, force and loss
+    /// within a few per cent) where the envelope alone cannot follow the
+    /// catch-up.
+    #[test]
+    fn learns_a_speed_loop_that_winds_up() {
+        let truth = ServoEnvelope {
+            mass_eq_kg: 80.0,
+            force_n: [1500.0; K],
+            accel_max_mps2: None,
+            speed_loop: Some(SpeedLoop {
+                bandwidth_radps: 1000.0,
+                integral_radps: 400.0,
+                windup: true,
+                damping_nspm: 2000.0,
+            }),
+        };
+        let run = envelope_run(truth);
+        let runs = std::slice::from_ref(&run);
+        let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
+        assert!(err < 1e-3 * nominal, "{err:e} against {nominal:e}: {env:?}");
+        let lp = env.speed_loop.expect("a speed loop");
+        assert!(lp.windup, "{env:?}");
+        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+        assert!(rel(env.mass_eq_kg, 80.0) < 0.1, "{env:?}");
+        assert!(rel(env.force_n[0], 1500.0) < 0.03, "{env:?}");
+        assert!(rel(lp.damping_nspm, 2000.0) < 0.1, "{env:?}");
+    }
+
     /// A drive that ramps its speed target at 2 m/s^2 whatever the load
     /// (a force at rest no load reaches): the envelope finds the ramp.
     #[test]
@@ -516,6 +778,7 @@ mod tests {
             mass_eq_kg: 100.0,
             force_n: [5000.0; 6],
             accel_max_mps2: Some(2.0),
+            speed_loop: None,
         };
         let run = envelope_run(truth);
         let runs = std::slice::from_ref(&run);
@@ -535,6 +798,7 @@ mod tests {
             mass_eq_kg: 150.0,
             force_n: [1200.0, 1200.0, 1200.0, 900.0, 600.0, 300.0],
             accel_max_mps2: None,
+            speed_loop: None,
         };
         // Full command against 800 N settles where A(v) = 800 N, near
         // 67 mm/s.

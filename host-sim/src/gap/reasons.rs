@@ -2,6 +2,7 @@
 //! outcome of the policy ([`super::policy`]).
 
 use super::diagnosis::Candidate;
+use super::equations::Residual;
 use super::isolate::Isolation;
 use super::policy::{MOST, NONE_GAP, PARAMS_MARGIN};
 use crate::model::effects::EffectKind;
@@ -109,6 +110,16 @@ pub fn located(iso: &Isolation) -> String {
         iso.dependence,
         iso.left(best),
         iso.names,
+    )
+}
+
+/// The addition when the best closure scales the parameters of the
+/// residual `r` alone, their re-estimate does not hold, and the verdict
+/// names an effect another closure of that residual names.
+pub fn one_equation(r: usize) -> String {
+    format!(
+        "That closure's gain lies in the {} residual alone and the parameters' re-estimate does not hold there, so the effects the other closures of that equation name were weighed by their replayed models. ",
+        Residual::ALL[r].name()
     )
 }
 

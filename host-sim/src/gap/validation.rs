@@ -172,6 +172,7 @@ fn general_family_cases() -> Vec<Case> {
                     mass_eq_kg: 150.0,
                     force_n: [1100.0, 1100.0, 900.0, 600.0, 300.0, 0.0],
                     accel_max_mps2: None,
+                    speed_loop: None,
                 }),
                 ..Effects::NONE
             },

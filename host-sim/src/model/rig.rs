@@ -250,7 +250,7 @@ impl Rig {
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
         let f_piston = self.piston_force_n(&x);
         let dvi = e
-            .servo_accel_mps2(vc, x.vi_mps, p.tau_m_s, f_piston)
+            .servo_accel_mps2((vc, p.tau_m_s), (x.vi_mps, f_piston), ext, de)
             .unwrap_or_else(|| (vc - x.vi_mps) / p.tau_m_s);
         let mut fo = self.plant.forces_n(&x, ft_n);
         e.add_piston_forces_n(&mut fo, x.vo_mps, x.p1_pa, x.p2_pa);

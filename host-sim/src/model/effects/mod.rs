@@ -818,6 +818,7 @@ mod tests {
             mass_eq_kg: 100.0,
             force_n: [1000.0, 1000.0, 800.0, 400.0, 0.0, 0.0],
             accel_max_mps2: None,
+            speed_loop: None,
         };
         assert!(s.is_valid());
         assert_eq!(s.available_n(0.0), 1000.0);
@@ -833,6 +834,7 @@ mod tests {
         // A ramp clamps what the loop asks for before the force does.
         let ramped = ServoEnvelope {
             accel_max_mps2: Some(2.0),
+            speed_loop: None,
             ..s
         };
         assert_eq!(ramped.accel(50.0, 0.05, 300.0), 2.0);
@@ -844,6 +846,7 @@ mod tests {
             mass_eq_kg: 100.0,
             force_n: [500.0; 6],
             accel_max_mps2: None,
+            speed_loop: None,
         };
         let m = MotorLimit {
             force_max_n: 500.0,
@@ -863,12 +866,98 @@ mod tests {
             mass_eq_kg: 100.0,
             force_n: [500.0, 600.0, 0.0, 0.0, 0.0, 0.0],
             accel_max_mps2: None,
+            speed_loop: None,
         });
         assert!(e.validate().is_err());
         e.servo_envelope = Some(flat);
         assert!(e.validate().is_ok());
         e.set(EffectKind::MotorLimit, Some(&[500.0, 100.0, 0.1]));
         assert!(e.validate().is_err());
+    }
+
+    /// The drive's own speed loop: unsaturated and fast, the nominal servo
+    /// up to its lag; saturated, a windup integrator catches up on the lost
+    /// position afterwards (the speed overshoots the reference) where a
+    /// held one does not; invalid loops are refused.
+    #[test]
+    fn a_speed_loop_follows_the_nominal_servo_and_winds_up_when_clamped() {
+        let tau = dca_core::params::PlantParams::NOMINAL.tau_m_s;
+        let run = |env: &ServoEnvelope, f_load_n: f64| -> (f64, f64, f64) {
+            // 0.1 m/s commanded for 0.3 s from rest, midpoint steps of 0.1 ms;
+            // the largest speed over the reference, the speed and the
+            // nominal servo's at 0.3 s.
+            let (mut v, mut own, mut v_nom, mut over) = (0.0, [0.0, f_load_n], 0.0, 0.0f64);
+            let h = 1e-4;
+            for _ in 0..3000 {
+                let r = |v: f64, own: [f64; 2]| {
+                    servo_rates(Servo::Envelope(env), (0.1, tau), v, f_load_n, own)
+                };
+                let (a1, d1) = r(v, own);
+                let om = [own[0] + 0.5 * h * d1[0], own[1] + 0.5 * h * d1[1]];
+                let (a2, d2) = r(v + 0.5 * h * a1, om);
+                v += h * a2;
+                own = [own[0] + h * d2[0], own[1] + h * d2[1]];
+                v_nom += h * (0.1 - (v_nom + 0.5 * h * (0.1 - v_nom) / tau)) / tau;
+                over = over.max(v - own[0]);
+            }
+            (over, v, v_nom)
+        };
+        let lp = SpeedLoop {
+            bandwidth_radps: 2000.0,
+            integral_radps: 200.0,
+            windup: true,
+            damping_nspm: 1000.0,
+        };
+        let strong = ServoEnvelope {
+            mass_eq_kg: 50.0,
+            force_n: [1e5; 6],
+            accel_max_mps2: None,
+            speed_loop: Some(lp),
+        };
+        assert!(strong.is_valid());
+        let (over, v, v_nom) = run(&strong, 400.0);
+        assert!(
+            over < 1e-3 && (v - v_nom).abs() < 1e-3,
+            "{over} {v} {v_nom}"
+        );
+        // 600 N against a 400 N load and 100 N of loss at full speed: the
+        // start is clamped, then the integrator drives the speed past the
+        // reference; held, it does not.
+        let weak = ServoEnvelope {
+            force_n: [600.0; 6],
+            ..strong
+        };
+        let (over_windup, _, _) = run(&weak, 400.0);
+        let held = ServoEnvelope {
+            speed_loop: Some(SpeedLoop {
+                windup: false,
+                ..lp
+            }),
+            ..weak
+        };
+        let (over_held, _, _) = run(&held, 400.0);
+        assert!(over_windup > 5e-3, "{over_windup}");
+        assert!(over_held < 0.5 * over_windup, "{over_held} {over_windup}");
+        for bad in [
+            SpeedLoop {
+                bandwidth_radps: 1e4,
+                ..lp
+            },
+            SpeedLoop {
+                integral_radps: 3000.0,
+                ..lp
+            },
+            SpeedLoop {
+                damping_nspm: -1.0,
+                ..lp
+            },
+        ] {
+            let e = ServoEnvelope {
+                speed_loop: Some(bad),
+                ..strong
+            };
+            assert!(!e.is_valid(), "{bad:?}");
+        }
     }
 
     #[test]

@@ -77,17 +77,21 @@ impl Visit for StepScale {
     }
 }
 
-/// The servo's acceleration from the first effect that models the servo.
-struct ServoAccel {
+/// The servo's acceleration from the first effect that models the servo,
+/// with its states' rates.
+struct ServoAccel<'a> {
     args: [f64; 4],
+    ext: &'a [f64],
+    rates: &'a mut [f64],
     out: Option<f64>,
 }
 
-impl Visit for ServoAccel {
-    fn visit<T: RigTerms>(&mut self, e: &T, _: Range<usize>) {
+impl Visit for ServoAccel<'_> {
+    fn visit<T: RigTerms>(&mut self, e: &T, at: Range<usize>) {
         if self.out.is_none() {
-            let [vc, v, tau, f] = self.args;
-            self.out = e.servo_accel_mps2(vc, v, tau, f);
+            let [vc, tau, v, f] = self.args;
+            let own = &self.ext[at.clone()];
+            self.out = e.servo_accel_mps2((vc, tau), v, f, own, &mut self.rates[at]);
         }
     }
 }
@@ -243,18 +247,20 @@ impl Effects {
     }
 
     /// The servo's acceleration from the first active effect that models
-    /// the servo ([`RigTerms::servo_accel_mps2`]); `None`: the nominal
-    /// servo.
+    /// the servo ([`RigTerms::servo_accel_mps2`]), its states' rates into
+    /// `rates` (the effects' states `ext`); `None`: the nominal servo.
     #[inline(always)]
     pub fn servo_accel_mps2(
         &self,
-        vc_mps: f64,
-        v_mps: f64,
-        tau_s: f64,
-        f_load_n: f64,
+        (vc_mps, tau_s): (f64, f64),
+        (v_mps, f_load_n): (f64, f64),
+        ext: &[f64],
+        rates: &mut [f64],
     ) -> Option<f64> {
         let mut v = ServoAccel {
-            args: [vc_mps, v_mps, tau_s, f_load_n],
+            args: [vc_mps, tau_s, v_mps, f_load_n],
+            ext,
+            rates,
             out: None,
         };
         self.visit_active(&mut v);

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::catalogue::{p, Broken, GeneralFamily, NamedEffect, ParamSpec, VALID_SPAN};
-use super::terms::RigTerms;
+use super::terms::{Rest, RigTerms};
 
 /// Servo torque and acceleration limits.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
@@ -56,6 +56,57 @@ pub struct ServoEnvelope {
     /// where absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accel_max_mps2: Option<f64>,
+    /// The drive's own speed loop ([`SpeedLoop`]) in place of the nominal
+    /// servo's ideal one (none where absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_loop: Option<SpeedLoop>,
+}
+
+/// The drive's own speed loop, a PI loop on the reflected mass `m` under the
+/// envelope: the drive shapes its speed reference `v_ref` from the command as
+/// the nominal servo does (first order, time constant tau, within the ramp if
+/// any) and asks for the force `m dv_ref/dt + kp (v_ref - v) + I`, with
+/// `kp = m bandwidth` and `dI/dt = ki (v_ref - v)`, `ki = kp integral`; the
+/// load is not fed forward (the integrator takes it up, and the screw's
+/// viscous loss `c v`). The envelope clamps the force; under `windup` the
+/// integrator keeps integrating meanwhile,
+/// otherwise it holds (conditional integration). Unsaturated and with a
+/// high bandwidth it is the nominal servo; after a saturation the speed
+/// catches up on the lost position (windup) or not.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedLoop {
+    /// The proportional gain over the reflected mass: the loop's bandwidth,
+    /// rad/s (at most [`SpeedLoop::BANDWIDTH_MAX_RADPS`]).
+    pub bandwidth_radps: f64,
+    /// The integral gain over the proportional gain: the integrator's
+    /// corner, rad/s (at most the bandwidth).
+    pub integral_radps: f64,
+    /// Whether the integrator keeps integrating while the force is clamped.
+    pub windup: bool,
+    /// Viscous loss of the screw and its bearings, N s/m: it takes `c v`
+    /// from the drive's force, which the loop makes up for while it can.
+    #[serde(default)]
+    pub damping_nspm: f64,
+}
+
+impl SpeedLoop {
+    /// Largest bandwidth: the replay's 0.5 ms RK4 step stays well inside
+    /// its stability limit (h lambda = 1.5 against 2.78).
+    pub const BANDWIDTH_MAX_RADPS: f64 = 3000.0;
+
+    /// Whether the loop is usable: finite, a positive bandwidth up to
+    /// [`Self::BANDWIDTH_MAX_RADPS`], an integral corner from 0 to it.
+    pub fn is_valid(&self) -> bool {
+        self.bandwidth_radps.is_finite()
+            && self.bandwidth_radps > 0.0
+            && self.bandwidth_radps <= Self::BANDWIDTH_MAX_RADPS
+            && self.integral_radps.is_finite()
+            && self.integral_radps >= 0.0
+            && self.integral_radps <= self.bandwidth_radps
+            && self.damping_nspm.is_finite()
+            && self.damping_nspm >= 0.0
+    }
 }
 
 impl ServoEnvelope {
@@ -73,28 +124,67 @@ impl ServoEnvelope {
         self.force_n[i] + w * (self.force_n[i + 1] - self.force_n[i])
     }
 
-    /// Servo acceleration when the speed loop asks for `a_mps2` at the
-    /// speed `v_mps` against the hydraulic force `f_load_n` (positive
-    /// opposing extension).
-    pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
-        let a_mps2 = match self.accel_max_mps2 {
+    /// The asked acceleration `a_mps2` within the drive's ramp, if any.
+    fn ramped(&self, a_mps2: f64) -> f64 {
+        match self.accel_max_mps2 {
             Some(ramp) => a_mps2.clamp(-ramp, ramp),
             None => a_mps2,
-        };
-        let f = self.mass_eq_kg * a_mps2 + f_load_n;
-        let cap = if f * v_mps >= 0.0 {
+        }
+    }
+
+    /// The force `f_n` the drive asks for at the speed `v_mps`, clamped to
+    /// the envelope: the available force while motoring, the force at rest
+    /// while braking.
+    fn clamped_n(&self, f_n: f64, v_mps: f64) -> f64 {
+        let cap = if f_n * v_mps >= 0.0 {
             self.available_n(v_mps)
         } else {
             self.force_n[0]
         };
-        (f.clamp(-cap, cap) - f_load_n) / self.mass_eq_kg
+        f_n.clamp(-cap, cap)
+    }
+
+    /// Servo acceleration when the speed loop asks for `a_mps2` at the
+    /// speed `v_mps` against the hydraulic force `f_load_n` (positive
+    /// opposing extension), the nominal loop's load fed forward.
+    pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
+        let f = self.mass_eq_kg * self.ramped(a_mps2) + f_load_n;
+        (self.clamped_n(f, v_mps) - f_load_n) / self.mass_eq_kg
+    }
+
+    /// Under the drive's own speed loop `lp`, from its states `own` (the
+    /// speed reference, m/s, and the integrator's force, N): the servo's
+    /// acceleration and the states' rates, towards the command `vc_mps`
+    /// with the nominal time constant `tau_s`, at the speed `v_mps` against
+    /// the hydraulic force `f_load_n`.
+    pub fn loop_rates(
+        &self,
+        lp: &SpeedLoop,
+        (vc_mps, tau_s): (f64, f64),
+        v_mps: f64,
+        f_load_n: f64,
+        own: [f64; 2],
+    ) -> (f64, [f64; 2]) {
+        let [v_ref, integral_n] = own;
+        let m = self.mass_eq_kg;
+        let dv_ref = self.ramped((vc_mps - v_ref) / tau_s);
+        let kp = m * lp.bandwidth_radps;
+        let asked = m * dv_ref + kp * (v_ref - v_mps) + integral_n;
+        let f = self.clamped_n(asked, v_mps);
+        let di = if lp.windup || f == asked {
+            kp * lp.integral_radps * (v_ref - v_mps)
+        } else {
+            0.0
+        };
+        ((f - lp.damping_nspm * v_mps - f_load_n) / m, [dv_ref, di])
     }
 
     /// Whether the envelope is usable: finite, a positive mass and force at
     /// rest, forces non-negative and non-increasing with speed, a ramp (if
-    /// any) positive.
+    /// any) positive, a speed loop (if any) valid.
     pub fn is_valid(&self) -> bool {
         self.accel_max_mps2.is_none_or(|a| a.is_finite() && a > 0.0)
+            && self.speed_loop.is_none_or(|l| l.is_valid())
             && self.mass_eq_kg.is_finite()
             && self.mass_eq_kg > 0.0
             && self.force_n[0].is_finite()
@@ -117,18 +207,29 @@ pub enum Servo<'a> {
 }
 
 /// Servo acceleration towards the speed command `vc_mps` (already within
-/// the nominal +-v_max) from the speed `v_mps`: the nominal first-order
-/// servo with time constant `tau_s`, or under the named limit its speed cap
-/// and force limit, or under the envelope its force over speed, against the
-/// hydraulic force `f_load_n`.
-pub fn servo_accel(servo: Servo<'_>, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> f64 {
+/// the nominal +-v_max) from the speed `v_mps`, and the rates of the servo's
+/// states `own` (those of the envelope's speed loop; zero otherwise): the
+/// nominal first-order servo with time constant `tau_s`, or under the named
+/// limit its speed cap and force limit, or under the envelope its force over
+/// speed (with its own speed loop if any), against the hydraulic force
+/// `f_load_n`.
+pub fn servo_rates(
+    servo: Servo<'_>,
+    (vc_mps, tau_s): (f64, f64),
+    v_mps: f64,
+    f_load_n: f64,
+    own: [f64; 2],
+) -> (f64, [f64; 2]) {
     match servo {
         Servo::Limit(m) => {
             let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
-            motor_accel(m, (target - v_mps) / tau_s, f_load_n)
+            (motor_accel(m, (target - v_mps) / tau_s, f_load_n), [0.0; 2])
         }
-        Servo::Envelope(s) => s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n),
-        Servo::Nominal => (vc_mps - v_mps) / tau_s,
+        Servo::Envelope(s) => match &s.speed_loop {
+            Some(lp) => s.loop_rates(lp, (vc_mps, tau_s), v_mps, f_load_n, own),
+            None => (s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n), [0.0; 2]),
+        },
+        Servo::Nominal => ((vc_mps - v_mps) / tau_s, [0.0; 2]),
     }
 }
 
@@ -181,32 +282,64 @@ impl GeneralFamily for ServoEnvelope {
         if let Some(a) = self.accel_max_mps2 {
             m.push(("accel_max_mps2".to_string(), a));
         }
+        if let Some(l) = self.speed_loop {
+            m.push(("loop_bandwidth_radps".to_string(), l.bandwidth_radps));
+            m.push(("loop_integral_radps".to_string(), l.integral_radps));
+            m.push(("loop_windup".to_string(), f64::from(u8::from(l.windup))));
+            m.push(("loop_damping_nspm".to_string(), l.damping_nspm));
+        }
         m
     }
 }
 
 /// The speed cap and the force limit on the servo.
 impl RigTerms for MotorLimit {
-    fn servo_accel_mps2(&self, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> Option<f64> {
-        Some(servo_accel(
-            Servo::Limit(self),
-            vc_mps,
-            v_mps,
-            tau_s,
-            f_load_n,
-        ))
+    fn servo_accel_mps2(
+        &self,
+        (vc_mps, tau_s): (f64, f64),
+        v_mps: f64,
+        f_load_n: f64,
+        _own: &[f64],
+        _rates: &mut [f64],
+    ) -> Option<f64> {
+        Some(
+            servo_rates(
+                Servo::Limit(self),
+                (vc_mps, tau_s),
+                v_mps,
+                f_load_n,
+                [0.0; 2],
+            )
+            .0,
+        )
     }
 }
 
-/// The force envelope over speed on the servo.
+/// The force envelope over speed on the servo; the states of its speed loop
+/// (the speed reference and the integrator's force), carried whether or not
+/// it has one.
 impl RigTerms for ServoEnvelope {
-    fn servo_accel_mps2(&self, vc_mps: f64, v_mps: f64, tau_s: f64, f_load_n: f64) -> Option<f64> {
-        Some(servo_accel(
+    const STATES: usize = 2;
+    /// The reference at rest, the integrator holding the load.
+    fn rest_states(&self, rest: &Rest, own: &mut [f64]) {
+        own[1] = rest.piston_force_n;
+    }
+    fn servo_accel_mps2(
+        &self,
+        (vc_mps, tau_s): (f64, f64),
+        v_mps: f64,
+        f_load_n: f64,
+        own: &[f64],
+        rates: &mut [f64],
+    ) -> Option<f64> {
+        let (a, d) = servo_rates(
             Servo::Envelope(self),
-            vc_mps,
+            (vc_mps, tau_s),
             v_mps,
-            tau_s,
             f_load_n,
-        ))
+            [own[0], own[1]],
+        );
+        rates[..2].copy_from_slice(&d);
+        Some(a)
     }
 }

@@ -166,16 +166,18 @@ pub trait RigTerms {
     fn step_scale(&self, _c_oil_m3pp: f64, _c_wall_m3pp: f64) -> Option<f64> {
         None
     }
-    /// The servo's acceleration where it models the servo, m/s^2: the speed
-    /// command `vc_mps` (within the nominal +-v_max), the servo's speed
-    /// `v_mps` and time constant `tau_s`, the hydraulic force `f_load_n` on
-    /// the power piston (positive opposing extension).
+    /// The servo's acceleration where it models the servo, m/s^2, with its
+    /// states' rates: the speed command `vc_mps` (within the nominal
+    /// +-v_max) and the servo's time constant `tau_s`, the servo's speed
+    /// `v_mps`, the hydraulic force `f_load_n` on the power piston
+    /// (positive opposing extension).
     fn servo_accel_mps2(
         &self,
-        _vc_mps: f64,
+        _command: (f64, f64),
         _v_mps: f64,
-        _tau_s: f64,
         _f_load_n: f64,
+        _own: &[f64],
+        _rates: &mut [f64],
     ) -> Option<f64> {
         None
     }
