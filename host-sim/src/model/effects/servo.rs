@@ -69,10 +69,10 @@ pub struct ServoEnvelope {
 /// `kp = m bandwidth` and `dI/dt = ki (v_ref - v)`, `ki = kp integral`; the
 /// load is not fed forward (the integrator takes it up, and the screw's
 /// viscous loss `c v`). The envelope clamps the force; under `windup` the
-/// integrator keeps integrating meanwhile,
-/// otherwise it holds (conditional integration). Unsaturated and with a
-/// high bandwidth it is the nominal servo; after a saturation the speed
-/// catches up on the lost position (windup) or not.
+/// integrator keeps integrating meanwhile, otherwise it holds (conditional
+/// integration). Unsaturated and with a high bandwidth it is the nominal
+/// servo; after a saturation the speed catches up on the lost position
+/// (windup) or not.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SpeedLoop {
