@@ -251,14 +251,9 @@ pub fn diagnose(
     // and their re-estimate does not hold, the equation is located but not
     // the form: the effects its other closures name may be named, the
     // replayed models deciding.
-    let one_equation = iso
-        .parameters_in_one_equation()
-        .filter(|_| !outside && !params_agree);
-    let in_equation =
-        |k: EffectKind| one_equation.is_some_and(|r| iso.named_in_residual(r).any(|x| x == k));
     let allowed = |k: EffectKind| {
         !outside
-            && (iso.allows(k) || in_equation(k))
+            && (iso.allows(k) || !params_agree && iso.in_one_equation(k))
             && (k != EffectKind::Parameters || params_agree)
     };
     let (decision, pair, partial) = verdict(&fitter, &n, &mut ranked, &allowed, opts);

@@ -159,6 +159,14 @@ impl Isolation {
             .filter(|k| *k != EffectKind::Parameters)
     }
 
+    /// Whether a `parameters` closure holds its gain in one residual
+    /// ([`Isolation::parameters_in_one_equation`]) and a closure of that
+    /// residual names `k` ([`Isolation::named_in_residual`]).
+    pub fn in_one_equation(&self, k: EffectKind) -> bool {
+        self.parameters_in_one_equation()
+            .is_some_and(|r| self.named_in_residual(r).any(|x| x == k))
+    }
+
     /// Whether the best closure lies outside the catalogue (a force over
     /// the load's position, a drift): no effect of the catalogue is then
     /// named, whatever the others explain.
@@ -181,11 +189,9 @@ impl Isolation {
                 best3.push(k);
             }
         }
-        let one = self.parameters_in_one_equation();
-        let in_one = |k: EffectKind| one.is_some_and(|r| self.named_in_residual(r).any(|x| x == k));
         EffectKind::ALL
             .into_iter()
-            .filter(|k| best3.contains(k) || self.allows(*k) || in_one(*k))
+            .filter(|k| best3.contains(k) || self.allows(*k) || self.in_one_equation(*k))
             .collect()
     }
 

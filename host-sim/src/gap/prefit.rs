@@ -291,6 +291,17 @@ const LOOP_STARTS: usize = 3;
 /// Jacobians of each Levenberg-Marquardt polish of the loop.
 const LOOP_ITERS: usize = 30;
 
+/// The speed loop of the loop search's values `x` (mass, force, loss,
+/// bandwidth, corner): the corner at most the bandwidth.
+fn loop_of(x: &[f64], windup: bool) -> SpeedLoop {
+    SpeedLoop {
+        bandwidth_radps: x[3],
+        integral_radps: x[4].min(x[3]),
+        windup,
+        damping_nspm: x[2],
+    }
+}
+
 /// Ramps of the drive tried, m/s^2 (a log axis between): from a crawl to
 /// beyond what the nominal speed loop asks for a full-speed step.
 const RAMP_MPS2: (f64, f64) = (0.3, 30.0);
@@ -474,12 +485,7 @@ impl EnvelopeSearch<'_> {
         ];
         let mut polished: Option<(f64, Vec<f64>, SpeedLoop)> = None;
         for windup in [true, false] {
-            let make = |x: &[f64]| SpeedLoop {
-                bandwidth_radps: x[3],
-                integral_radps: x[4].min(x[3]),
-                windup,
-                damping_nspm: x[2],
-            };
+            let make = |x: &[f64]| loop_of(x, windup);
             // The best point of the grid per mass, the best masses first.
             let mut grid: Vec<(f64, [f64; 3])> = Vec::new();
             for m in log_axis(MOTOR_MASS.lo * 2.0, 1e3, LOOP_MASSES) {
@@ -528,17 +534,7 @@ impl EnvelopeSearch<'_> {
         let of_u = |u: f64, i: usize| if LOG[i] { u.exp() } else { u * 1e3 };
         let f = |u: &[f64]| {
             let x: Vec<f64> = (0..5).map(|i| of_u(u[i], i)).collect();
-            let lp = SpeedLoop {
-                bandwidth_radps: x[3],
-                integral_radps: x[4].min(x[3]),
-                windup,
-                damping_nspm: x[2],
-            };
-            let mut s = envelope(x[0], &[x[1]; K], self.ramp);
-            s.speed_loop = Some(lp);
-            if !s.is_valid() {
-                return None;
-            }
+            let s = self.looped(loop_of(&x, windup)).servo(x[0], &[x[1]; K])?;
             servo_residuals(self.runs, self.plant, Servo::Envelope(&s))
         };
         let u0: Vec<f64> = (0..5).map(|i| to_u(x0[i], i)).collect();
@@ -584,12 +580,18 @@ impl EnvelopeSearch<'_> {
     /// Squared Xi error of the envelope (mass `m`, forces `a`), stopping
     /// early above `stop`; infinite for an invalid envelope.
     fn error(&self, m: f64, a: &[f64], stop: f64) -> f64 {
+        match self.servo(m, a) {
+            Some(s) => total_error(self.runs, self.plant, Servo::Envelope(&s), true, stop),
+            None => f64::INFINITY,
+        }
+    }
+
+    /// The envelope of mass `m` and forces `a` with this search's ramp and
+    /// speed loop; `None` where it is invalid.
+    fn servo(&self, m: f64, a: &[f64]) -> Option<ServoEnvelope> {
         let mut s = envelope(m, a, self.ramp);
         s.speed_loop = self.speed_loop;
-        if !s.is_valid() {
-            return f64::INFINITY;
-        }
-        total_error(self.runs, self.plant, Servo::Envelope(&s), true, stop)
+        s.is_valid().then_some(s)
     }
 
     /// Knot-by-knot search at mass `m` from the forces `a0`: twice over, the
