@@ -38,6 +38,12 @@ pub fn hysteresis_rate(h: &HoseHysteresis, z_pa: f64, dp: f64) -> f64 {
     dp - dp.abs() * z_pa / h.yield_pa
 }
 
+/// The hysteretic pressure `z_pa` within +-`yield_pa`, the set its exact
+/// solution never leaves (a NaN stays NaN: a diverged replay is told by it).
+fn within_yield(z_pa: f64, yield_pa: f64) -> f64 {
+    z_pa.clamp(-yield_pa, yield_pa)
+}
+
 /// Yields of the elements of a [`HysteresisSpectrum`], Pa: two per decade
 /// from 10 kPa to 1 MPa.
 pub const SPECTRUM_YIELDS_PA: [f64; 5] = [1e4, 3e4, 1e5, 3e5, 1e6];
@@ -176,6 +182,12 @@ impl RigTerms for HoseHysteresis {
         line.add_compliance([engaged * self.c_m3pp - stuck]);
         rates[line.index] = hysteresis_rate(self, z, line.dp_paps());
     }
+    /// Each line's hysteretic pressure within +-yield.
+    fn keep_states(&self, own: &mut [f64]) {
+        for z in own.iter_mut() {
+            *z = within_yield(*z, self.yield_pa);
+        }
+    }
 }
 
 /// Each element's hysteretic pressure per line (the states: line 1's five,
@@ -197,6 +209,13 @@ impl RigTerms for HysteresisSpectrum {
         let dp = line.dp_paps();
         for (i, zi) in z.iter().enumerate() {
             rates[at + i] = hysteresis_rate(&self.element(i), *zi, dp);
+        }
+    }
+    /// Each element's hysteretic pressure within +-its yield.
+    fn keep_states(&self, own: &mut [f64]) {
+        let yields = SPECTRUM_YIELDS_PA.iter().cycle();
+        for (z, y) in own.iter_mut().zip(yields) {
+            *z = within_yield(*z, *y);
         }
     }
 }

@@ -63,6 +63,17 @@ impl Visit for RestStates<'_> {
     }
 }
 
+/// The effects' states kept in their sets after a step.
+struct KeepStates<'a> {
+    ext: &'a mut [f64],
+}
+
+impl Visit for KeepStates<'_> {
+    fn visit<T: RigTerms>(&mut self, e: &T, at: Range<usize>) {
+        e.keep_states(&mut self.ext[at]);
+    }
+}
+
 /// The smallest step scale.
 struct StepScale {
     c: (f64, f64),
@@ -232,6 +243,12 @@ impl Effects {
     /// `ext` (the rig's extra states, zero before).
     pub fn rest_states(&self, rest: Rest, ext: &mut [f64]) {
         self.visit_active(&mut RestStates { rest, ext });
+    }
+
+    /// The active effects' states in `ext` brought back into their sets
+    /// after a plant step ([`RigTerms::keep_states`]).
+    pub fn keep_states(&self, ext: &mut [f64]) {
+        self.visit_active(&mut KeepStates { ext });
     }
 
     /// Factor (at most 1) on the plant's largest stable step: the smallest

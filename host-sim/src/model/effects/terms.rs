@@ -160,6 +160,12 @@ pub trait RigTerms {
     }
     /// Its states at rest, written to `own` (all zero before).
     fn rest_states(&self, _rest: &Rest, _own: &mut [f64]) {}
+    /// Its states brought back into the set their exact solution never
+    /// leaves, after each plant step (e.g. a rate-independent element's
+    /// hysteretic pressure within its yield: on a step over which the
+    /// pressure moves by many yields, RK4 would otherwise overshoot and
+    /// diverge).
+    fn keep_states(&self, _own: &mut [f64]) {}
     /// Factor (at most 1) on the plant's largest stable step, from the line
     /// capacitance at its softest (its oil's and its wall's part), where it
     /// stiffens the lines.
