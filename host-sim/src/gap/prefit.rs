@@ -11,6 +11,7 @@
 
 use super::fit::{minimize, Bound};
 use super::lsq;
+use super::replay;
 use super::run::Run;
 use crate::model::effects::{
     self, EffectKind, MotorLimit, Servo, ServoEnvelope, SpeedLoop, ENVELOPE_SPEEDS_MPS,
@@ -29,7 +30,9 @@ const FLAT_TOL: f64 = 0.05;
 
 /// The Xi error (in units of the run's Xi scale) of the servo model `servo`
 /// on one run, row by row, handed to `each` until it returns false; false
-/// where the model diverged.
+/// where the model diverged. Xi runs open loop from the first row on logs
+/// of one controller tick per row, from each row's encoder reading on
+/// longer rows (see the body).
 fn servo_track(
     run: &Run,
     plant: &Plant,
@@ -54,9 +57,22 @@ fn servo_track(
     // The servo's own states (a speed loop's reference and integrator),
     // at rest with the integrator holding the load.
     let mut own = [0.0, plant.piston_force_n(log.p1_pa[0], log.p2_pa[0])];
+    // On rows of several controller ticks the log keeps one command of
+    // each row's several, off the row's mean by the controller's answer to
+    // sensor noise and by the command's change within the row. Run open
+    // loop over the whole run, those departures add up in Xi: on closed-loop
+    // runs of a drive with its own speed loop, at 10 ms, the fit then
+    // missed the drive that 1 ms logs of the same runs gave within 5 %
+    // (docs/gap.md). There each row's error is its own: Xi restarts from
+    // the encoder at every row; the servo's speed and states carry on (a
+    // drive that cannot follow lags over many rows).
+    let restart = log.dt_s() > replay::ONE_TICK_ROW_S;
     for k in 0..n {
         if !each((log.xi_m[k] - xi) / scale) {
             return true;
+        }
+        if restart {
+            xi = log.xi_m[k];
         }
         let f = plant.piston_force_n(log.p1_pa[k], log.p2_pa[k]);
         let vc = plant
@@ -703,9 +719,10 @@ impl EnvelopeSearch<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::open_loop_run;
+    use super::super::testing::{open_loop_run, rows_run};
     use super::*;
     use crate::model::effects::Effects;
+    use crate::model::scenario::{Piecewise, Signal};
 
     /// An open-loop run of the rig with a motor limit; the prefit finds it.
     #[test]
@@ -770,6 +787,52 @@ mod tests {
         assert!(rel(env.mass_eq_kg, 80.0) < 0.1, "{env:?}");
         assert!(rel(env.force_n[0], 1500.0) < 0.03, "{env:?}");
         assert!(rel(lp.damping_nspm, 2000.0) < 0.1, "{env:?}");
+    }
+
+    /// Rows of ten ticks, as a console capture keeps them, of a drive whose
+    /// force is capped at 1500 N under a controller of the encoder (a
+    /// proportional loop on position steps, its command scattered tick by
+    /// tick by up to +-20 mm/s as an answer to sensor noise would; the log
+    /// keeps each row's first tick): the envelope finds the cap within 5 %
+    /// and the mass within 20 %.
+    #[test]
+    fn learns_a_force_cap_from_rows_of_ten_ticks() {
+        let cap = 1500.0;
+        let truth = ServoEnvelope {
+            mass_eq_kg: 150.0,
+            force_n: [cap; K],
+            accel_max_mps2: None,
+            speed_loop: None,
+        };
+        let e = Effects {
+            servo_envelope: Some(truth),
+            ..Effects::NONE
+        };
+        // A fixed sequence of uniform numbers in [-1, 1).
+        let uniform = |k: usize| {
+            let mut x = (k as u64).wrapping_mul(6364136223846793005);
+            x = x.wrapping_add(1442695040888963407);
+            x ^= x >> 33;
+            x = x.wrapping_mul(0xff51afd7ed558ccd);
+            x ^= x >> 33;
+            (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let reference = Signal::Piecewise(
+            Piecewise::constants(vec![0.3, 1.3, 2.1], &[0.0, 0.04, 0.01, 0.03]).unwrap(),
+        );
+        let v_max = Plant::nominal().params().v_max_mps;
+        let command = |k: usize, xi_m: f64| {
+            let r = reference.value(k as f64 * 1e-3);
+            (30.0 * (r - xi_m)).clamp(-v_max, v_max) + 0.02 * uniform(k)
+        };
+        let load = (vec![0.1, 1.0, 2.0], &[0.0, 800.0, 1400.0, 600.0][..]);
+        let run = rows_run(e, 3.0, command, load, 10);
+        assert!((run.log.dt_s() - 0.01).abs() < 1e-9);
+        let runs = std::slice::from_ref(&run);
+        let (env, _, _) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
+        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+        assert!(rel(env.force_n[0], cap) < 0.05, "{env:?}");
+        assert!(rel(env.mass_eq_kg, 150.0) < 0.2, "{env:?}");
     }
 
     /// A drive that ramps its speed target at 2 m/s^2 whatever the load

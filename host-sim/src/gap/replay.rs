@@ -231,7 +231,7 @@ pub fn replay_visit(
 /// Rows longer than this hold several of the controller's commands (it
 /// ticks at 1 ms; docs/interfaces.md section 1), of which the log keeps the
 /// first.
-const ONE_TICK_ROW_S: f64 = 1.5e-3;
+pub const ONE_TICK_ROW_S: f64 = 1.5e-3;
 
 /// Bound of the command's correction, in robust standard deviations of one
 /// recorded sample about its row's mean ([`RowCommands::bound`]): that
