@@ -20,7 +20,9 @@ use super::equations::{noise_of, residuals, with_terms_over, Residual, Residuals
 use super::lsq::{dot, solve as gauss};
 use super::stats::mean;
 use crate::io::runlog::RunLog;
-use crate::model::effects::{CalChannel, EffectKind, ParameterRatios, SCREW_FORCES_N};
+use crate::model::effects::{
+    CalChannel, EffectKind, ParameterRatios, LEAK_DP_PA, SCREW_FORCES_N, SEAL_P_REF_PA,
+};
 use crate::model::plant::Plant;
 
 /// Where a closure adds its term: an equation of the model, a sensor
@@ -662,17 +664,24 @@ fn coupling_tent_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
     responses(run, plant, &build, fs, 1e-5)
 }
 
-/// A flow between the lines of any shape over their pressure difference,
+/// Scale of the leak closure's level column, Pa: its weight over this is
+/// the leakage map's level conductance, m^3/(s Pa).
+pub const LEAK_LEVEL_PA: f64 = 1e6;
+
+/// A flow between the lines of any shape over their pressure difference
+/// (the leakage map's knots: each tent's weight is the flow there, m^3/s),
 /// and a share that grows with their mean pressure, integrated.
 fn leak_columns(run: &RunData, plant: &Plant) -> Vec<Vec<f64>> {
     let s = &run.sig;
     let (h, n) = (s.h_s, s.len());
     let dp: Vec<f64> = (0..n).map(|k| s.p1[k] - s.p2[k]).collect();
-    let mut fs: Vec<Vec<f64>> = odd_tents(&dp, &[0.0, 0.25e6, 0.5e6, 1e6, 2e6, 4e6])
+    let mut fs: Vec<Vec<f64>> = odd_tents(&dp, &LEAK_DP_PA)
         .into_iter()
         .map(|f| integral(&f, h))
         .collect();
-    let level: Vec<f64> = (0..n).map(|k| dp[k] * (s.p1[k] + s.p2[k]) / 2e12).collect();
+    let level: Vec<f64> = (0..n)
+        .map(|k| dp[k] * 0.5 * (s.p1[k] + s.p2[k]) / SEAL_P_REF_PA / LEAK_LEVEL_PA)
+        .collect();
     fs.push(integral(&level, h));
     let build = |f: Vec<f64>| Terms {
         leak_m3: Some(f),

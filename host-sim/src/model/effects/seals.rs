@@ -194,6 +194,11 @@ impl GeneralFamily for LeakageMap {
             g_m3pspa: x[5].max(0.0) * 1e-13,
         })
     }
+    fn to_learned(&self) -> Option<Vec<f64>> {
+        let mut x: Vec<f64> = self.q_m3ps.iter().map(|q| q.max(0.0) / 1e-7).collect();
+        x.push(self.g_m3pspa.max(0.0) / 1e-13);
+        Some(x)
+    }
 }
 
 impl NamedEffect for Friction {
