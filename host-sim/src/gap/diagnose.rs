@@ -207,8 +207,9 @@ fn learned_starts(iso: &Isolation) -> LearnedStarts {
     }
     // The leakage map from the closure of the flow between the lines: its
     // odd tents over the pressure difference at the map's knots (each
-    // weight the flow there) and its level column, cut to the map's
-    // non-negative values.
+    // weight the flow there; the tent at 0, a step through dP = 0, has no
+    // place in a map that flows nothing at 0) and its level column, cut to
+    // the map's non-negative values.
     let leak = iso
         .weights(Site::Between, Dependence::PressureDifference)
         .filter(|w| w.len() == LEAK_DP_PA.len() + 1)

@@ -608,40 +608,6 @@ mod tests {
         assert!(xo_dev_um(&stop, &run(&rig(None))) > 1.0);
     }
 
-    /// At the replay's plant step (0.5 ms) a load step moves the pressure
-    /// by many of the smallest element's yields in one step, where RK4
-    /// alone overshoots the hysteretic pressure and diverges: each element
-    /// stays within its yield and the rig stays finite, for the named form
-    /// at its smallest yield as for the spectrum.
-    #[test]
-    fn hysteretic_pressures_stay_within_their_yields_on_fast_load_steps() {
-        let mut spectrum = Effects::NONE;
-        spectrum.hose_spectrum = Some(effects::HysteresisSpectrum {
-            c_m3pp: [1e-13; NS],
-            stop_c_m3pp: [1e-13; NS],
-        });
-        let named = rig(Some((EffectKind::HoseHysteresis, &[1e-13, 0.0, 1e3])));
-        for (r, yields) in [
-            (
-                Rig::new(Plant::nominal(), spectrum).unwrap(),
-                &effects::SPECTRUM_YIELDS_PA[..],
-            ),
-            (named, &[1e3][..]),
-        ] {
-            let mut s = r.initial_state(0.0);
-            for k in 0..2000 {
-                let ft = if (k / 100) % 2 == 1 { 1500.0 } else { 0.0 };
-                r.step(&mut s, 0.0, ft, 5e-4);
-                assert!(s.is_finite(), "step {k}");
-                let z = &s.ext.v[..2 * yields.len()];
-                for (i, zi) in z.iter().enumerate() {
-                    let y = yields[i % yields.len()];
-                    assert!(zi.abs() <= y, "step {k}, element {i}: {zi} beyond {y}");
-                }
-            }
-        }
-    }
-
     /// The gas relaxation: zero weights are the nominal rig to rounding; one
     /// element of weight n_poly - 1 is the named thermal form of the same
     /// time constant to first order in the temperature (within 1 % of the

@@ -627,6 +627,63 @@ fn param_names(kind: EffectKind) -> String {
 mod tests {
     use super::*;
 
+    /// The range of the rig's extra states that the one active effect of
+    /// `e` owns.
+    fn own_states(e: &Effects) -> std::ops::Range<usize> {
+        use terms::RigTerms;
+        struct Own(Vec<std::ops::Range<usize>>);
+        impl terms::Visit for Own {
+            fn visit<T: RigTerms>(&mut self, _: &T, at: std::ops::Range<usize>) {
+                self.0.push(at);
+            }
+        }
+        let mut own = Own(Vec::new());
+        e.visit_active(&mut own);
+        assert_eq!(own.0.len(), 1, "one active effect");
+        own.0.remove(0)
+    }
+
+    /// At the replay's plant step (0.5 ms) a load step moves the pressure
+    /// by many of the smallest element's yields in one step, where RK4
+    /// alone overshoots the hysteretic pressure and diverges: each element
+    /// stays within its yield and the rig stays finite, for the named form
+    /// at its smallest yield as for the spectrum (line 1's elements, then
+    /// line 2's).
+    #[test]
+    fn hysteretic_pressures_stay_within_their_yields_on_fast_load_steps() {
+        use crate::model::plant::Plant;
+        use crate::model::rig::Rig;
+        let spectrum = Effects {
+            hose_spectrum: Some(HysteresisSpectrum {
+                c_m3pp: [1e-13; 5],
+                stop_c_m3pp: [1e-13; 5],
+            }),
+            ..Effects::NONE
+        };
+        let mut named = Effects::NONE;
+        named.set(EffectKind::HoseHysteresis, Some(&[1e-13, 0.0, 1e3]));
+        for (e, yields) in [(spectrum, &SPECTRUM_YIELDS_PA[..]), (named, &[1e3][..])] {
+            let own = own_states(&e);
+            assert_eq!(own.len(), 2 * yields.len());
+            let r = Rig::new(Plant::nominal(), e).unwrap();
+            let mut s = r.initial_state(0.0);
+            let mut moved = [0.0f64; 2];
+            for k in 0..2000 {
+                let ft = if (k / 100) % 2 == 1 { 1500.0 } else { 0.0 };
+                r.step(&mut s, 0.0, ft, 5e-4);
+                assert!(s.is_finite(), "step {k}");
+                let z = &s.ext.values()[own.clone()];
+                for (i, zi) in z.iter().enumerate() {
+                    let y = yields[i % yields.len()];
+                    assert!(zi.abs() <= y, "step {k}, element {i}: {zi} beyond {y}");
+                    moved[i / yields.len()] = moved[i / yields.len()].max(zi.abs() / y);
+                }
+            }
+            // Both lines' elements were driven to their yields.
+            assert!(moved.iter().all(|m| *m > 0.99), "{moved:?}");
+        }
+    }
+
     #[test]
     fn parse_and_set_round_trip() {
         let mut e = Effects::NONE;
