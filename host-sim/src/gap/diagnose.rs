@@ -475,12 +475,7 @@ mod tests {
     #[test]
     fn the_leakage_start_reads_the_flow_closure_in_the_maps_units() {
         let truth = LeakageMap {
-            q_m3ps: LEAK_DP_PA[1..]
-                .iter()
-                .map(|dp| 1e-13 * dp)
-                .collect::<Vec<_>>()
-                .try_into()
-                .unwrap(),
+            q_m3ps: std::array::from_fn(|i| 1e-13 * LEAK_DP_PA[i + 1]),
             g_m3pspa: 0.5e-13,
         };
         let e = Effects {

@@ -723,6 +723,7 @@ mod tests {
     use super::*;
     use crate::model::effects::Effects;
     use crate::model::scenario::{Piecewise, Signal};
+    use rand::{Rng, SeedableRng};
 
     /// An open-loop run of the rig with a motor limit; the prefit finds it.
     #[test]
@@ -808,25 +809,18 @@ mod tests {
             servo_envelope: Some(truth),
             ..Effects::NONE
         };
-        // A fixed sequence of uniform numbers in [-1, 1).
-        let uniform = |k: usize| {
-            let mut x = (k as u64).wrapping_mul(6364136223846793005);
-            x = x.wrapping_add(1442695040888963407);
-            x ^= x >> 33;
-            x = x.wrapping_mul(0xff51afd7ed558ccd);
-            x ^= x >> 33;
-            (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        };
+        // The scatter: uniform in [-20, 20) mm/s, seeded.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let reference = Signal::Piecewise(
             Piecewise::constants(vec![0.3, 1.3, 2.1], &[0.0, 0.04, 0.01, 0.03]).unwrap(),
         );
         let v_max = Plant::nominal().params().v_max_mps;
         let command = |k: usize, xi_m: f64| {
             let r = reference.value(k as f64 * 1e-3);
-            (30.0 * (r - xi_m)).clamp(-v_max, v_max) + 0.02 * uniform(k)
+            (30.0 * (r - xi_m)).clamp(-v_max, v_max) + rng.random_range(-0.02..0.02)
         };
         let load = (vec![0.1, 1.0, 2.0], &[0.0, 800.0, 1400.0, 600.0][..]);
-        let run = rows_run(e, 3.0, command, load, 10);
+        let run = Run::new("t".into(), rows_run(e, 3.0, command, load).log.decimate(10));
         assert!((run.log.dt_s() - 0.01).abs() < 1e-9);
         let runs = std::slice::from_ref(&run);
         let (env, _, _) = servo_envelope(runs, &Plant::nominal()).expect("fitted");

@@ -17,20 +17,18 @@ pub fn open_loop_run(
     load: (Vec<f64>, &[f64]),
 ) -> Run {
     let v = Signal::Piecewise(Piecewise::constants(cmd.0, cmd.1).unwrap());
-    rows_run(effects, t_end_s, |k, _| v.value(k as f64 * 1e-3), load, 1)
+    rows_run(effects, t_end_s, |k, _| v.value(k as f64 * 1e-3), load)
 }
 
 /// A run of the rig with `effects` under the load `load` (piecewise
 /// constant) and the speed command `command(tick, xi_m)` at each 1 ms tick
 /// (open loop, or a controller of the encoder), logged with ideal sensors
-/// every `every` ticks (a console capture keeps the first tick of each
-/// row).
+/// at every tick ([`RunLog::decimate`] gives a console capture's rows).
 pub fn rows_run(
     effects: Effects,
     t_end_s: f64,
     mut command: impl FnMut(usize, f64) -> f64,
     load: (Vec<f64>, &[f64]),
-    every: usize,
 ) -> Run {
     let rig = Rig::new(Plant::nominal(), effects).unwrap();
     let load = Signal::Piecewise(Piecewise::constants(load.0, load.1).unwrap());
@@ -40,12 +38,10 @@ pub fn rows_run(
         let t = k as f64 * 1e-3;
         let v = command(k, s.x.xi_m);
         let ft = load.value(t);
-        if k % every.max(1) == 0 {
-            text.push_str(&format!(
-                "{t},0,{v},{},{},{},{},{ft}\n",
-                s.x.xi_m, s.x.xo_m, s.x.p1_pa, s.x.p2_pa
-            ));
-        }
+        text.push_str(&format!(
+            "{t},0,{v},{},{},{},{},{ft}\n",
+            s.x.xi_m, s.x.xo_m, s.x.p1_pa, s.x.p2_pa
+        ));
         for _ in 0..10 {
             rig.step(&mut s, v, ft, 1e-4);
         }
