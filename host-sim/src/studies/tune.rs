@@ -24,10 +24,13 @@
 //!    settings on the identified design model and the starting settings as
 //!    they were are run on rigs drawn around the identified one ([`Robust`]:
 //!    every physical parameter within +-F, the rig's effects kept); those
-//!    infeasible on any are dropped, and of the rest the one whose worst cost
-//!    over these rigs is least is chosen (the best on the identified rig
-//!    alone may be fragile to the identification's error). If none holds,
-//!    the tune is refused with the reason.
+//!    infeasible on any are dropped. Of the rest, the one nearest the preset
+//!    (as it was, then on the identified design model, then the search's)
+//!    whose worst cost over these rigs is within [`MIN_GAIN`] of the least
+//!    is chosen ([`choose`]): the best on the identified rig alone may be
+//!    fragile to the identification's error, and a change the model predicts
+//!    to gain a few percent is within that error. If none holds, the tune is
+//!    refused with the reason.
 //! 4. **Output.** The settings differing from the preset, written once with
 //!    nine significant digits: the configuration file and the console script
 //!    hold the same numbers, and the "after" figures are measured with
@@ -582,28 +585,30 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
     let evals = tried.len() as u64 + design_evals;
     tried.sort_by(|a, b| a.0.total_cmp(&b.0));
     tried.dedup_by(|a, b| a.1 == b.1);
-    // Candidates: the best few feasible points, then the starting settings
-    // on the identified design model.
-    let mut candidates: Vec<ControllerConfig> = tried
+    // Candidates, each with its distance from the preset (0 the starting
+    // settings as they were, 1 the same on the identified design model, 2 the
+    // search's):
+    // the best few feasible points of the search, then the starting settings
+    // on the identified design model, then the settings as they were
+    // (commissioning must be able to change nothing where nothing tried holds
+    // better around the identified rig).
+    let mut candidates: Vec<(u8, ControllerConfig)> = tried
         .iter()
         .filter(|(c, _)| *c < 1e3)
         .take(5)
-        .map(|(_, x)| knob_config(knobs, &start, x))
+        .map(|(_, x)| (2, knob_config(knobs, &start, x)))
         .collect();
-    // And the settings as they were: commissioning must be able to change
-    // nothing where nothing tried holds better around the identified rig.
-    candidates.push(start);
+    candidates.push((1, start));
     if setup.base != start {
-        candidates.push(setup.base);
+        candidates.push((0, setup.base));
     }
     bar.set_message("robustness check");
-    // Of the candidates that hold on every rig around the identified one,
-    // the one whose worst cost there is least: settings that are best on
-    // the identified rig alone may be fragile to its error.
+    // Every candidate's worst cost on the rigs around the identified one: the
+    // settings best on the identified rig alone may be fragile to its error.
     let mut last_reason = String::new();
     let mut rejected = 0;
-    let mut chosen: Option<(f64, Tuned)> = None;
-    for cfg in &candidates {
+    let mut held: Vec<(u8, f64, Tuned)> = Vec::new();
+    for &(distance, ref cfg) in &candidates {
         let (text, changed) = config_text(setup, cfg, source);
         let mut written = ConfigFile::parse_str(&text, "the tuned configuration")?
             .resolve(setup.base.kind, "the tuned configuration")?;
@@ -622,26 +627,26 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
                 continue;
             }
         };
-        if chosen.as_ref().is_none_or(|(w, _)| worst < *w) {
-            chosen = Some((
-                worst,
-                Tuned {
-                    config: written,
-                    script_text: script_text(setup, &changed, source),
-                    config_text: text,
-                    before: before.clone(),
-                    after,
-                    changed,
-                    evals,
-                    rejected: 0,
-                    elapsed_s: 0.0,
-                },
-            ));
-        }
+        held.push((
+            distance,
+            worst,
+            Tuned {
+                config: written,
+                script_text: script_text(setup, &changed, source),
+                config_text: text,
+                before: before.clone(),
+                after,
+                changed,
+                evals,
+                rejected: 0,
+                elapsed_s: 0.0,
+            },
+        ));
     }
+    let chosen = choose(held.iter().map(|(d, w, _)| (*d, *w))).map(|i| held.swap_remove(i));
     bar.finish_and_clear();
     match chosen {
-        Some((_, t)) => Ok(Tuned {
+        Some((_, _, t)) => Ok(Tuned {
             rejected,
             elapsed_s: t0.elapsed().as_secs_f64(),
             ..t
@@ -651,6 +656,29 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
             candidates.len()
         ))),
     }
+}
+
+/// How much lower, as a share, a candidate's worst cost around the
+/// identified rig must be to be chosen over one nearer the preset. The
+/// identified rig is known to some percent, and below this the search trades
+/// one figure against another on it. Measured on 24 rigs of the shipped
+/// tolerance spec (docs/control.md): without it three rigs ended worse than
+/// with the preset (the worst from 0.04 to 0.31 mm above its floor at the
+/// 800 N step: a rig identified as the nominal one, on which six settings had
+/// moved), with it none.
+pub const MIN_GAIN: f64 = 0.05;
+
+/// Of the candidates (distance from the preset, worst cost), the index of
+/// the one nearest the preset whose worst cost is within [`MIN_GAIN`] of
+/// the least; at one distance, the least worst cost.
+pub fn choose(candidates: impl Iterator<Item = (u8, f64)>) -> Option<usize> {
+    let all: Vec<(u8, f64)> = candidates.collect();
+    let least = all.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+    all.iter()
+        .enumerate()
+        .filter(|(_, c)| c.1 * (1.0 - MIN_GAIN) <= least)
+        .min_by(|(_, a), (_, b)| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)))
+        .map(|(i, _)| i)
 }
 
 fn progress_bar(setup: &TuneSetup) -> ProgressBar {
@@ -836,5 +864,26 @@ mod tests {
         let cs0 = half.hose.cs0_m3pp / PlantParams::NOMINAL.hose.cs0_m3pp;
         assert!((cs0 - 2.0).abs() < 1e-12);
         assert_eq!(half.ap1_m2, PlantParams::NOMINAL.ap1_m2);
+    }
+
+    /// A candidate further from the preset is chosen only where its worst
+    /// cost is more than [`MIN_GAIN`] below that of every nearer one; at one
+    /// distance the least worst cost wins; nothing to choose from is none.
+    #[test]
+    fn the_nearest_candidate_within_the_least_gain_is_chosen() {
+        let pick = |c: &[(u8, f64)]| choose(c.iter().copied());
+        // The search's best gains 3 %: the preset stays.
+        assert_eq!(pick(&[(2, 0.97), (2, 0.99), (1, 1.0), (0, 1.0)]), Some(3));
+        // It gains 10 %: the search's best.
+        assert_eq!(pick(&[(2, 0.99), (2, 0.90), (1, 1.0), (0, 1.0)]), Some(1));
+        // The identified design gains 10 % over the preset and the search 2 %
+        // over it: the identified design.
+        assert_eq!(pick(&[(2, 0.88), (1, 0.9), (0, 1.0)]), Some(1));
+        // The preset is worse than its bound by a hair: it is not chosen.
+        assert_eq!(
+            pick(&[(2, 0.9), (0, 0.9 / (1.0 - MIN_GAIN) + 1e-9)]),
+            Some(0)
+        );
+        assert_eq!(pick(&[]), None);
     }
 }
