@@ -4,6 +4,7 @@
 use dca_core::{ControllerKind, Preset};
 
 use super::effects::Effect;
+use super::plant::ix;
 use super::rig::Rig;
 use super::scenario::{col, run, Ctl, RunSpec, Scenario};
 
@@ -82,6 +83,21 @@ impl Case {
     /// The rig.
     pub fn rig(&self) -> Rig {
         Rig::new(&self.effects)
+    }
+
+    /// How far the rig moves in 0.2 s from its rest state with no command
+    /// and no load: |dXo|, |dXi| (m), |dP1|, |dP2| (Pa); `None` where a
+    /// state turns non-finite.
+    pub fn drift_at_rest(&self) -> Option<[f64; 4]> {
+        let rig = self.rig();
+        let x0 = rig.rest(0.0);
+        let mut x = x0;
+        for k in 0..2000 {
+            x = rig.step(k as f64 * 1e-4, &x, 0.0, 0.0);
+        }
+        x.iter()
+            .all(|v| v.is_finite())
+            .then(|| [ix::XO, ix::XI, ix::P1, ix::P2].map(|i| (x[i] - x0[i]).abs()))
     }
 }
 
@@ -284,8 +300,8 @@ pub fn controller(n: usize) -> Ctl {
 
 /// One case of the table: label, kind, the true identifiers, the effects,
 /// the magnitude in words, and the fit and check runs (scenario and
-/// controller number).
-type Row = (
+/// controller number of [`controller`]).
+pub type Row = (
     &'static str,
     Kind,
     Vec<&'static str>,
@@ -304,11 +320,16 @@ pub fn all() -> Vec<Case> {
         weaker_pairs_and_clean(),
         outside_the_vocabulary(),
     ];
+    numbered(rows.into_iter().flatten(), 0x4_F0F0_0000)
+}
+
+/// The cases of `rows` with neutral names (`rig-01`, ...) in their order,
+/// the fit run of case i seeded `seed0 + 2 i` and its check run the next.
+pub fn numbered(rows: impl IntoIterator<Item = Row>, seed0: u64) -> Vec<Case> {
     rows.into_iter()
-        .flatten()
         .enumerate()
         .map(|(i, (label, kind, truth, effects, magnitude, f, c))| {
-            let seed = 0x4_F0F0_0000 + 2 * i as u64;
+            let seed = seed0 + 2 * i as u64;
             Case {
                 id: format!("rig-{:02}", i + 1),
                 label,
@@ -331,7 +352,6 @@ pub fn all() -> Vec<Case> {
         .collect()
 }
 
-/// Singles, two forms per identifier: seals, coupling and air.
 fn singles_seals_and_mechanics() -> Vec<Row> {
     use Kind::*;
     use Scenario::*;

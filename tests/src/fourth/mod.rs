@@ -12,10 +12,16 @@
 //!   the sensor-side effects;
 //! * [`scenario`]: programmes, `dca_core`'s controllers at the board's 1 ms
 //!   tick, the closed loop and the run log;
-//! * [`cases`]: the case list with its truth.
+//! * [`cases`]: the case list with its truth;
+//! * [`fifth`]: the fifth family, another case list on the same plant with
+//!   its own effect forms (appended to [`effects`]);
+//! * [`measure`]: writing a family's logs, running the release `host-sim
+//!   gap` on them and tabulating the verdicts.
 
 pub mod cases;
 pub mod effects;
+pub mod fifth;
+pub mod measure;
 pub mod plant;
 pub mod rig;
 pub mod scenario;

@@ -6,8 +6,44 @@ use super::effects::Effect;
 use super::plant::ix::*;
 use super::plant::{Params, N_STATES};
 
-/// The extended state (the 11 nominal states first, see [`super::plant::ix`]).
-pub type State = [f64; NX];
+/// The extended state (the 11 nominal states first, see [`super::plant::ix`],
+/// then the fifth family's, see [`fx`]).
+pub type State = [f64; fx::NX];
+
+/// Indices of the states the fifth family's effects add after
+/// [`super::plant::ix::NX`] (effects on one part of the rig share a block).
+pub mod fx {
+    use super::super::plant::ix;
+    /// Slip of a friction-locked joint ([`super::Effect::BacklashLockedPlay`]), m.
+    pub const SLIP: usize = ix::NX;
+    /// Drive state: the motor force ([`super::Effect::MotorBackEmf`]), N.
+    pub const DRV: usize = ix::NX + 1;
+    /// Bubble temperature ([`super::Effect::AirBubbleThermal`]), K.
+    pub const TB: usize = ix::NX + 2;
+    /// Actuating chamber pressure behind a slug ([`super::Effect::AirSlug`]), Pa.
+    pub const P1B: usize = ix::NX + 3;
+    /// Flow of hose 1's oil column towards the actuating cylinder, m^3/s.
+    pub const QH: usize = ix::NX + 4;
+    /// Load fixture position ([`super::Effect::LoadFixture`]), m.
+    pub const XF: usize = ix::NX + 5;
+    /// Its speed, m/s.
+    pub const VF: usize = ix::NX + 6;
+    /// Length of each hose's wall block.
+    pub const HW_LEN: usize = 18;
+    /// Hose 1's wall block: the five creep volumes (m^3) and the braid's
+    /// play state (Pa) of [`super::Effect::HoseCreepBraid`], or the 18 relay
+    /// states of [`super::Effect::HosePreisach`].
+    pub const HW1: usize = ix::NX + 7;
+    /// Hose 2's wall block.
+    pub const HW2: usize = HW1 + HW_LEN;
+    /// Length of the state vector.
+    pub const NX: usize = HW2 + HW_LEN;
+}
+
+/// Time constants of [`Effect::HoseCreepBraid`]'s creep spectrum, s.
+pub const CREEP_TAU: [f64; 5] = [0.004, 0.02, 0.1, 0.5, 2.5];
+/// Adiabatic index of the air of [`Effect::AirBubbleThermal`].
+const GAMMA_AIR: f64 = 1.4;
 
 /// Universal gas constant, J/(mol K).
 pub const R_GAS: f64 = 8.314_462_618;
@@ -30,6 +66,8 @@ struct Parts {
     spring: Option<Effect>,
     relief: Option<Effect>,
     rupture: Option<Effect>,
+    lead: Option<Effect>,
+    fixture: Option<Effect>,
 }
 
 /// A simulated rig: parameters, effects and the integrator.
@@ -46,6 +84,13 @@ pub struct Rig {
     gas_mol: f64,
     /// Molar heat capacity at constant volume, J/(mol K).
     cv: f64,
+    /// Weights of [`Effect::HoseCreepBraid`]'s creep spectrum (sum 1).
+    creep_w: [f64; 5],
+    /// [`Effect::HosePreisach`]'s relays: up and down thresholds (Pa) and
+    /// volume (m^3).
+    relays: [[f64; 3]; fx::HW_LEN],
+    /// Gas of [`Effect::AirBubbleThermal`], mol.
+    bubble_mol: f64,
 }
 
 fn put(slot: &mut Option<Effect>, e: Effect) {
@@ -107,8 +152,80 @@ impl Rig {
                 Effect::LvdtNonlinear { .. }
                 | Effect::P1Saturating { .. }
                 | Effect::LvdtDrift { .. } => {}
+                Effect::ParamScaleHydraulic {
+                    p_acc0,
+                    g_acc,
+                    aa,
+                    l,
+                } => {
+                    p.p_acc0 *= p_acc0;
+                    p.g_acc *= g_acc;
+                    p.aa1 *= aa;
+                    p.aa2 *= aa;
+                    p.l *= l;
+                }
+                Effect::MotorRipple { .. }
+                | Effect::MotorDeadband { .. }
+                | Effect::MotorBackEmf { .. } => put(&mut parts.drive, e),
+                Effect::HoseCreepBraid { .. } | Effect::HosePreisach { .. } => {
+                    put(&mut parts.hose, e)
+                }
+                Effect::BacklashWornNut { .. } | Effect::BacklashLockedPlay { .. } => {
+                    put(&mut parts.coupling, e)
+                }
+                Effect::AirBubbleThermal { .. } | Effect::AirSlug { .. } => put(&mut parts.air, e),
+                Effect::LeakScoredBore { .. } => put(&mut parts.leak, e),
+                Effect::FrictionSideLoad { .. } => put(&mut parts.friction, e),
+                Effect::AccumulatorForcedConvection { .. } => put(&mut parts.acc, e),
+                Effect::ScrewLeadError { .. } => put(&mut parts.lead, e),
+                Effect::LoadFixture { .. } => put(&mut parts.fixture, e),
+                Effect::LvdtSampleHold { .. }
+                | Effect::LoadCellError { .. }
+                | Effect::StickyLvdtCore { .. }
+                | Effect::MainsHum { .. } => {}
             }
         }
+        assert!(
+            parts.lead.is_none() || parts.coupling.is_none(),
+            "a lead error and a coupling on one rig"
+        );
+        let mut creep_w = [0.0; 5];
+        let mut relays = [[0.0; 3]; fx::HW_LEN];
+        match parts.hose {
+            Some(Effect::HoseCreepBraid { alpha, .. }) => {
+                for (w, tau) in creep_w.iter_mut().zip(CREEP_TAU) {
+                    *w = tau.powf(alpha);
+                }
+                let sum: f64 = creep_w.iter().sum();
+                for w in &mut creep_w {
+                    *w /= sum;
+                }
+            }
+            Some(Effect::HosePreisach {
+                v_tot,
+                p_lo,
+                p_hi,
+                h_mean,
+                ..
+            }) => {
+                let widths = [0.4, 1.0, 1.6];
+                let shares = [0.5, 0.33, 0.17];
+                for i in 0..6 {
+                    let centre = p_lo + i as f64 * (p_hi - p_lo) / 5.0;
+                    for j in 0..3 {
+                        let h = widths[j] * h_mean;
+                        relays[3 * i + j] = [centre + h, centre - h, v_tot * shares[j] / 6.0];
+                    }
+                }
+            }
+            _ => {}
+        }
+        let bubble_mol = match parts.air {
+            Some(Effect::AirBubbleThermal {
+                v_ref, p_ref_abs, ..
+            }) => p_ref_abs * v_ref / (R_GAS * T_AMB),
+            _ => 0.0,
+        };
         let pabs0 = p.p_acc0 + p.p_atm;
         let mut gas_mol = pabs0 * p.v_gas0 / (R_GAS * T_AMB);
         if let Some(Effect::AccumulatorConvection { a_vdw, b_vdw, .. }) = parts.acc {
@@ -126,6 +243,9 @@ impl Rig {
             xp_offset: 0.0,
             gas_mol,
             cv: R_GAS / (p.n_poly - 1.0),
+            creep_w,
+            relays,
+            bubble_mol,
         };
         rig.xp_offset = rig.rest(0.0)[XP];
         rig
@@ -152,7 +272,7 @@ impl Rig {
     /// effects' own equilibria).
     pub fn rest(&self, ft0: f64) -> State {
         let p = &self.p;
-        let mut x = [0.0; NX];
+        let mut x = [0.0; fx::NX];
         x[P2] = p.p_acc0;
         x[P1] = (p.aa2 * x[P2] + ft0 - self.spring_force(0.0)) / p.aa1;
         x[VF1] = p.cf0 * p.l_of(x[P1]);
@@ -170,6 +290,37 @@ impl Rig {
                 x[XP] = half_play.copysign(f_hyd0) + f_hyd0 / k_contact;
             }
             Some(Effect::BacklashHysteresisCoupling { k_lin, .. }) => x[XP] = f_hyd0 / k_lin,
+            Some(Effect::BacklashWornNut { .. }) => {
+                // The static contact force falls monotonically with d: bisect
+                // for the d at which it balances the hydraulic force.
+                let (mut lo, mut hi) = (-0.01, 0.01);
+                for _ in 0..200 {
+                    let mid = 0.5 * (lo + hi);
+                    if self.worn_nut_force(0.0, mid, 0.0) + f_hyd0 > 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                x[XP] = 0.5 * (lo + hi);
+            }
+            Some(Effect::BacklashLockedPlay {
+                half_play,
+                f_lock,
+                k_joint,
+                k_end,
+                ..
+            }) => {
+                // Assembled centred (slip 0); a force beyond the clamping
+                // friction has thrown the flange to an end of its play.
+                if f_hyd0.abs() <= f_lock {
+                    x[XP] = f_hyd0 / k_joint;
+                } else {
+                    let del = (half_play + (f_hyd0.abs() - f_lock) / k_end).copysign(f_hyd0);
+                    x[XP] = del;
+                    x[fx::SLIP] = del - f_lock.copysign(f_hyd0) / k_joint;
+                }
+            }
             _ => {}
         }
         if let Some(Effect::AirDissolving { a_tot, henry, .. }) = self.parts.air {
@@ -183,7 +334,106 @@ impl Rig {
         }
         x[PM1] = x[P1];
         x[PM2] = x[P2];
+        if let Some(Effect::MotorBackEmf { .. }) = self.parts.drive {
+            x[fx::DRV] = -f_hyd0;
+        }
+        match self.parts.air {
+            Some(Effect::AirBubbleThermal { .. }) => x[fx::TB] = T_AMB,
+            Some(Effect::AirSlug { .. }) => x[fx::P1B] = x[P1],
+            _ => {}
+        }
+        if let Some(Effect::LoadFixture { k_f, .. }) = self.parts.fixture {
+            x[fx::XF] = -ft0 / k_f;
+        }
+        for (hw, pj) in [(fx::HW1, x[P1]), (fx::HW2, x[P2])] {
+            match self.parts.hose {
+                Some(Effect::HoseCreepBraid {
+                    c_creep, r0, mu, ..
+                }) => {
+                    for k in 0..5 {
+                        x[hw + k] = c_creep * self.creep_w[k] * p.l_of(pj);
+                    }
+                    // Pressurised from zero: on the rising edge of the play.
+                    x[hw + 5] = pj - (r0 + mu * pj.max(0.0));
+                }
+                Some(Effect::HosePreisach { delta, .. }) => {
+                    for (k, r) in self.relays.iter().enumerate() {
+                        x[hw + k] = ((pj - r[0]) / delta).clamp(0.0, 1.0);
+                    }
+                }
+                _ => {}
+            }
+        }
         x
+    }
+
+    /// Static contact force of [`Effect::BacklashWornNut`] on the power
+    /// piston at encoder position `xi`, nut deflection `del` and its rate.
+    fn worn_nut_force(&self, xi: f64, del: f64, ddel: f64) -> f64 {
+        let Some(Effect::BacklashWornNut {
+            k_half,
+            g_pre,
+            g_wear,
+            x_wear,
+            w_wear,
+            c_contact,
+            ..
+        }) = self.parts.coupling
+        else {
+            return 0.0;
+        };
+        let u = (xi - x_wear) / w_wear;
+        let half_gap = 0.5 * (g_wear * (-u * u).exp() - g_pre);
+        let mut f = 0.0;
+        if del > half_gap {
+            f += (-(k_half * (del - half_gap) + c_contact * ddel)).min(0.0);
+        }
+        if del < -half_gap {
+            f += (-(k_half * (del + half_gap) + c_contact * ddel)).max(0.0);
+        }
+        f
+    }
+
+    /// Power piston position and speed for the encoder's (Xi, vi): the
+    /// identity unless a [`Effect::ScrewLeadError`] applies.
+    fn lead_map(&self, xi: f64, vi: f64) -> (f64, f64) {
+        match self.parts.lead {
+            Some(Effect::ScrewLeadError {
+                lead_err,
+                wobble,
+                lead,
+            }) => {
+                let k = 2.0 * std::f64::consts::PI / lead;
+                (
+                    xi * (1.0 + lead_err) + wobble * (k * xi).sin(),
+                    vi * (1.0 + lead_err + wobble * k * (k * xi).cos()),
+                )
+            }
+            _ => (xi, vi),
+        }
+    }
+
+    /// Line-1 pressure on the actuating piston (behind a slug: its own).
+    fn p1_at_piston(&self, x: &State) -> f64 {
+        match self.parts.air {
+            Some(Effect::AirSlug { .. }) => x[fx::P1B],
+            _ => x[P1],
+        }
+    }
+
+    /// The load on the rod (positive against extension), N: the scenario's
+    /// load, or the clevis force of a [`Effect::LoadFixture`] (whose
+    /// derivatives go into `d`).
+    fn load_on_rod(&self, x: &State, ft: f64, d: &mut State) -> f64 {
+        match self.parts.fixture {
+            Some(Effect::LoadFixture { m_f, k_f, c_f }) => {
+                let f_clevis = k_f * (x[fx::XF] - x[XO]) + c_f * (x[fx::VF] - x[VO]);
+                d[fx::XF] = x[fx::VF];
+                d[fx::VF] = (-ft - f_clevis) / m_f;
+                -f_clevis
+            }
+            _ => ft,
+        }
     }
 
     /// Absolute accumulator gas pressure, Pa.
@@ -191,7 +441,8 @@ impl Rig {
         let p = &self.p;
         let vg = x[VG];
         match self.parts.acc {
-            Some(Effect::AccumulatorWall { .. }) => self.gas_mol * R_GAS * x[TG] / vg,
+            Some(Effect::AccumulatorWall { .. })
+            | Some(Effect::AccumulatorForcedConvection { .. }) => self.gas_mol * R_GAS * x[TG] / vg,
             Some(Effect::AccumulatorConvection { a_vdw, b_vdw, .. }) => {
                 let n = self.gas_mol;
                 n * R_GAS * x[TG] / (vg - n * b_vdw) - a_vdw * n * n / (vg * vg)
@@ -204,7 +455,7 @@ impl Rig {
     /// plus the effects).
     pub fn rhs(&self, t: f64, x: &State, v_cmd: f64, ft: f64) -> State {
         let p = &self.p;
-        let mut d = [0.0; NX];
+        let mut d = [0.0; fx::NX];
         let (p1, p2) = (x[P1], x[P2]);
         let vc = v_cmd.clamp(-p.v_max, p.v_max);
         let f_hyd = p.power_piston_force(p1, p2);
@@ -227,7 +478,7 @@ impl Rig {
     /// position and speed for the line volumes and the force on the screw;
     /// the coupling's derivatives into `d`.
     fn power_piston(&self, x: &State, f_hyd: f64, d: &mut State) -> (f64, f64, f64) {
-        let (xi, vi) = (x[XI], x[VI]);
+        let (xi, vi) = self.lead_map(x[XI], x[VI]);
         let (mut xp, mut vp, mut f_screw) = (xi, vi, f_hyd);
         if let Some(c) = self.parts.coupling {
             let del = x[XP] - xi;
@@ -260,6 +511,31 @@ impl Rig {
                     let z = x[ZC];
                     d[ZC] = sigma * (1.0 - z / f_dahl * ddel.signum()) * ddel;
                     (-(k_lin * del + z + c_coupling * ddel), m_piston, c_piston)
+                }
+                Effect::BacklashWornNut {
+                    m_piston, c_piston, ..
+                } => (self.worn_nut_force(xi, del, ddel), m_piston, c_piston),
+                Effect::BacklashLockedPlay {
+                    half_play,
+                    f_lock,
+                    k_joint,
+                    k_end,
+                    c_joint,
+                    m_piston,
+                    c_piston,
+                } => {
+                    let f_j = k_joint * (del - x[fx::SLIP]);
+                    if (f_j >= f_lock && ddel > 0.0) || (f_j <= -f_lock && ddel < 0.0) {
+                        d[fx::SLIP] = ddel;
+                    }
+                    let mut f = -(f_j + c_joint * ddel);
+                    if del > half_play {
+                        f -= k_end * (del - half_play);
+                    }
+                    if del < -half_play {
+                        f -= k_end * (del + half_play);
+                    }
+                    (f, m_piston, c_piston)
                 }
                 _ => unreachable!(),
             };
@@ -304,6 +580,38 @@ impl Rig {
                 let vce = vc.clamp(-v_top, v_top);
                 d[VI] = ((vce - vi) / p.tau_m).clamp(-a_max, a_max);
             }
+            Some(Effect::MotorRipple {
+                m_eq,
+                k_v,
+                v_ref,
+                pitch,
+            }) => {
+                let f_m = m_eq * (vc - vi) / p.tau_m - f_screw;
+                let u = vi.abs() / v_ref;
+                let phase = 2.0 * std::f64::consts::PI * x[XI] / pitch;
+                let dip = -f_m * k_v * u / (1.0 + u) * 0.5 * phase.cos();
+                d[VI] = (vc - vi) / p.tau_m + dip / m_eq;
+            }
+            Some(Effect::MotorDeadband { v_db, q }) => {
+                let over = (vc.abs() - v_db).max(0.0);
+                let ve = ((over / q).round() * q).copysign(vc);
+                d[VI] = (ve - vi) / p.tau_m;
+            }
+            Some(Effect::MotorBackEmf {
+                m_eq,
+                f_stall,
+                v_noload,
+                tau_e,
+                w_c,
+                f_max,
+            }) => {
+                let f = x[fx::DRV];
+                let f_dem = (m_eq * (vc - vi) / p.tau_m - f_screw).clamp(-f_max, f_max);
+                let emf = f_stall * vi / v_noload;
+                let u = ((f + emf + tau_e * w_c * (f_dem - f)) / f_stall).clamp(-1.0, 1.0);
+                d[fx::DRV] = (f_stall * u - f - emf) / tau_e;
+                d[VI] = (f + f_screw) / m_eq;
+            }
             _ => {}
         }
     }
@@ -311,7 +619,8 @@ impl Rig {
     /// The actuating piston's derivatives (end stops, load, friction) into `d`.
     fn actuating_piston(&self, x: &State, ft: f64, d: &mut State) {
         let p = &self.p;
-        let (xo, vo, p1, p2) = (x[XO], x[VO], x[P1], x[P2]);
+        let (xo, vo, p1, p2) = (x[XO], x[VO], self.p1_at_piston(x), x[P2]);
+        let ft = self.load_on_rod(x, ft, d);
         let mut fs = 0.0;
         if xo > p.x_max {
             fs = -p.k_stop * (xo - p.x_max) - if vo > 0.0 { p.c_stop * vo } else { 0.0 };
@@ -355,6 +664,18 @@ impl Rig {
                     fc_ret
                 }
             }
+            Some(Effect::FrictionSideLoad {
+                mu,
+                n0,
+                ecc,
+                span0,
+                v_s,
+            }) => {
+                let f_ax = p.aa1 * p1 - p.aa2 * p2;
+                let span = (span0 - xo).max(0.2 * span0);
+                let n = n0 + 2.0 * f_ax.abs() * ecc / span;
+                -mu * n * vo / (vo * vo + v_s * v_s).sqrt()
+            }
             _ => 0.0,
         };
         d[XO] = vo;
@@ -389,6 +710,10 @@ impl Rig {
                 let heat = k_nc * dt.abs().cbrt() * dt;
                 d[TG] = (-(n * R_GAS * tg / (vg - n * b_vdw)) * qa + heat) / cg;
             }
+            Some(Effect::AccumulatorForcedConvection { tau_still, q_ref }) => {
+                let h = cg / tau_still * (1.0 + qa.abs() / q_ref);
+                d[TG] = (-pg_abs * qa + h * (T_AMB - x[TG])) / cg;
+            }
             _ => {}
         }
         qa
@@ -409,6 +734,17 @@ impl Rig {
             Some(Effect::LeakDilatingGap { g0, p_dil }) => {
                 g0 * dp12 * (1.0 + dp12.abs() / p_dil).powi(3)
             }
+            Some(Effect::LeakScoredBore {
+                g_max,
+                x_a,
+                x_b,
+                edge,
+            }) => {
+                let ramp =
+                    |u: f64| 0.5 * (1.0 + (0.5 * std::f64::consts::PI * u.clamp(-1.0, 1.0)).sin());
+                let xo = x[XO];
+                g_max * ramp((xo - x_a) / edge) * ramp((x_b - xo) / edge) * dp12
+            }
             _ => 0.0,
         };
         q1 -= q12;
@@ -428,15 +764,36 @@ impl Rig {
     fn pressures(&self, x: &State, q: [f64; 2], xp: f64, d: &mut State) {
         let p = &self.p;
         let (xo, q1, q2) = (x[XO], q[0], q[1]);
+        let (mut q1, mut v1) = (q1 - d[VF1] - d[VS1], p.v1(xp, xo));
+        if let Some(Effect::AirSlug { .. }) = self.parts.air {
+            // The actuating chamber is on the slug's side of the oil column.
+            q1 += p.aa1 * x[VO] - x[fx::QH];
+            v1 -= p.v_dead + p.aa1 * (xo - p.x_min);
+        }
         let lines = [
-            (P1, q1 - d[VF1] - d[VS1], p.v1(xp, xo), NA1, BW1, ST1),
-            (P2, q2 - d[VF2] - d[VS2], p.v2(xp, xo), NA2, BW2, ST2),
+            (P1, q1, v1, NA1, BW1, ST1, fx::HW1),
+            (
+                P2,
+                q2 - d[VF2] - d[VS2],
+                p.v2(xp, xo),
+                NA2,
+                BW2,
+                ST2,
+                fx::HW2,
+            ),
         ];
-        for (j, (ip, q, v, ina, ibw, ist)) in lines.into_iter().enumerate() {
+        for (j, (ip, q, v, ina, ibw, ist, ihw)) in lines.into_iter().enumerate() {
             let pj = x[ip];
             let pabs = (pj + p.p_atm).max(0.05 * p.p_atm);
             let mut num = q;
             let mut den = v / p.beta_e + p.ce0 * p.f(pj);
+            if let Some(Effect::HoseCreepBraid { c_creep, .. }) = self.parts.hose {
+                for k in 0..5 {
+                    let dv = (c_creep * self.creep_w[k] * p.l_of(pj) - x[ihw + k]) / CREEP_TAU[k];
+                    d[ihw + k] = dv;
+                    num -= dv;
+                }
+            }
             match self.parts.air {
                 Some(Effect::AirDissolving {
                     a_tot,
@@ -459,6 +816,12 @@ impl Rig {
                 }) if j == 0 => {
                     let vb = vb_ref * (p_ref_abs / pabs).powf(1.0 / kappa);
                     den += vb / (kappa * pabs);
+                }
+                Some(Effect::AirBubbleThermal { tau_th, .. }) if j == 0 => {
+                    let tb = x[fx::TB];
+                    let vb = self.bubble_mol * R_GAS * tb / pabs;
+                    den += vb / (GAMMA_AIR * pabs);
+                    num += vb / GAMMA_AIR * (T_AMB - tb) / (tb * tau_th);
                 }
                 _ => {}
             }
@@ -484,10 +847,31 @@ impl Rig {
                         }
                     }
                 }
+                Some(Effect::HoseCreepBraid {
+                    c_braid, r0, mu, ..
+                }) => {
+                    if let Some(slope) = braid_slope(up, pj, x[ihw + 5], r0, mu) {
+                        den += c_braid * slope;
+                    }
+                }
+                Some(Effect::HosePreisach { delta, .. }) => {
+                    for (k, rl) in self.relays.iter().enumerate() {
+                        if relay_switching(up, x[ihw + k], pj, rl, delta) {
+                            den += rl[2] / delta;
+                        }
+                    }
+                }
                 _ => {}
             }
             let dp = num / den;
             d[ip] = dp;
+            if let Some(Effect::AirBubbleThermal { tau_th, .. }) = self.parts.air {
+                if j == 0 {
+                    let tb = x[fx::TB];
+                    d[fx::TB] = (T_AMB - tb) / (GAMMA_AIR * tau_th)
+                        + tb * (GAMMA_AIR - 1.0) / GAMMA_AIR * dp / pabs;
+                }
+            }
             match self.parts.hose {
                 Some(Effect::HoseBoucWen {
                     p_z,
@@ -509,8 +893,35 @@ impl Rig {
                         }
                     }
                 }
+                Some(Effect::HoseCreepBraid { r0, mu, .. }) => {
+                    if let Some(slope) = braid_slope(up, pj, x[ihw + 5], r0, mu) {
+                        d[ihw + 5] = slope * dp;
+                    }
+                }
+                Some(Effect::HosePreisach { delta, .. }) => {
+                    for (k, rl) in self.relays.iter().enumerate() {
+                        if relay_switching(up, x[ihw + k], pj, rl, delta) {
+                            d[ihw + k] = dp / delta;
+                        }
+                    }
+                }
                 _ => {}
             }
+        }
+        if let Some(Effect::AirSlug {
+            v_slug,
+            p_ref_abs,
+            kappa,
+            inertance,
+            resistance,
+        }) = self.parts.air
+        {
+            let pb = x[fx::P1B];
+            let pabs = (pb + p.p_atm).max(0.05 * p.p_atm);
+            let vs = v_slug * (p_ref_abs / pabs).powf(1.0 / kappa);
+            let v_oil = p.v_dead + p.aa1 * (xo - p.x_min);
+            d[fx::P1B] = (x[fx::QH] - p.aa1 * x[VO]) / (v_oil / p.beta_e + vs / (kappa * pabs));
+            d[fx::QH] = (x[P1] - pb - resistance * x[fx::QH]) / inertance;
         }
     }
 
@@ -543,7 +954,7 @@ impl Rig {
         };
         let add = |a: &State, k: &State, s: f64| {
             let mut o = *a;
-            for i in 0..NX {
+            for i in 0..fx::NX {
                 o[i] += s * k[i];
             }
             o
@@ -553,7 +964,7 @@ impl Rig {
         let k3 = self.rhs(t, &add(x, &k2, h / 2.0), v, ft);
         let k4 = self.rhs(t, &add(x, &k3, h), v, ft);
         let mut o = *x;
-        for i in 0..NX {
+        for i in 0..fx::NX {
             o[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
         }
         // Rate-independent elements stay inside their yield sets.
@@ -572,6 +983,30 @@ impl Rig {
         }
         o[NA1] = o[NA1].max(0.0);
         o[NA2] = o[NA2].max(0.0);
+        for (ip, hw) in [(P1, fx::HW1), (P2, fx::HW2)] {
+            let pj = o[ip];
+            match self.parts.hose {
+                Some(Effect::HoseCreepBraid { r0, mu, .. }) => {
+                    let r = r0 + mu * pj.max(0.0);
+                    o[hw + 5] = o[hw + 5].clamp(pj - r, pj + r);
+                }
+                Some(Effect::HosePreisach { delta, .. }) => {
+                    for (k, rl) in self.relays.iter().enumerate() {
+                        let (u, dn) = relay_bounds(pj, rl, delta);
+                        o[hw + k] = o[hw + k].clamp(u, dn);
+                    }
+                }
+                _ => {}
+            }
+        }
+        if let Some(Effect::BacklashLockedPlay {
+            f_lock, k_joint, ..
+        }) = self.parts.coupling
+        {
+            let del = o[XP] - o[XI];
+            let e = f_lock / k_joint;
+            o[fx::SLIP] = o[fx::SLIP].clamp(del - e, del + e);
+        }
         o
     }
 
@@ -588,5 +1023,40 @@ impl Rig {
         let mut o = self.rest(0.0);
         o[..N_STATES].copy_from_slice(x);
         o
+    }
+}
+
+/// The braid play of [`Effect::HoseCreepBraid`]: dy/dP while the braid slips
+/// with the pressure moving up (`up`) or down, `None` while it holds.
+fn braid_slope(up: bool, pj: f64, y: f64, r0: f64, mu: f64) -> Option<f64> {
+    let mu_e = if pj > 0.0 { mu } else { 0.0 };
+    let r = r0 + mu * pj.max(0.0);
+    // 1 Pa of tolerance: the state sits on the edge after each step's clamp.
+    if up && pj - y >= r - 1.0 {
+        Some(1.0 - mu_e)
+    } else if !up && pj - y <= -r + 1.0 {
+        Some(1.0 + mu_e)
+    } else {
+        None
+    }
+}
+
+/// Bounds (lower, upper) of a Preisach relay's state at pressure `pj`
+/// (relay: up threshold, down threshold, volume).
+fn relay_bounds(pj: f64, rl: &[f64; 3], delta: f64) -> (f64, f64) {
+    (
+        ((pj - rl[0]) / delta).clamp(0.0, 1.0),
+        ((pj - rl[1]) / delta + 1.0).clamp(0.0, 1.0),
+    )
+}
+
+/// True while a Preisach relay in state `s` switches with the pressure
+/// moving up (`up`) or down.
+fn relay_switching(up: bool, s: f64, pj: f64, rl: &[f64; 3], delta: f64) -> bool {
+    let (u, dn) = relay_bounds(pj, rl, delta);
+    if up {
+        pj > rl[0] && pj < rl[0] + delta && s <= u + 1e-12
+    } else {
+        pj < rl[1] && pj > rl[1] - delta && s >= dn - 1e-12
     }
 }

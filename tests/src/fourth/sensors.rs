@@ -77,6 +77,16 @@ pub struct Sensors {
     /// LVDT signal history at the plant step (transport delay), oldest first.
     history: VecDeque<f64>,
     delay_steps: usize,
+    /// Plant step, s.
+    plant_dt: f64,
+    /// Xo at the plant steps for a sample-and-hold module, oldest first,
+    /// and the number of plant steps before its first entry.
+    held: VecDeque<f64>,
+    held_start: usize,
+    /// Steps the sample-and-hold line keeps.
+    held_len: usize,
+    /// Position of a sticky LVDT core, m.
+    core: Option<f64>,
 }
 
 /// 12-bit ADC of plant.md section 5: code = clamp(floor((v - lo)/(hi - lo)
@@ -101,12 +111,26 @@ impl Sensors {
                 delay_steps = (delay_s / plant_dt).round() as usize;
             }
         }
+        let mut held_len = 0;
+        for e in effects {
+            if let Effect::LvdtSampleHold {
+                period, transport, ..
+            } = e
+            {
+                held_len = ((period + transport) / plant_dt).ceil() as usize + 4;
+            }
+        }
         Self {
             rng: Rng::new(seed),
             noisy,
             effects: effects.to_vec(),
             history: VecDeque::with_capacity(delay_steps + 2),
             delay_steps,
+            plant_dt,
+            held: VecDeque::with_capacity(held_len + 1),
+            held_start: 0,
+            held_len,
+            core: None,
         }
     }
 
@@ -124,6 +148,33 @@ impl Sensors {
                 self.history.pop_front();
             }
         }
+        if self.held_len > 0 {
+            self.held.push_back(x[XO]);
+            while self.held.len() > self.held_len {
+                self.held.pop_front();
+                self.held_start += 1;
+            }
+        }
+        for e in &self.effects {
+            if let Effect::StickyLvdtCore { half_play } = *e {
+                let xo = x[XO];
+                let c = self.core.unwrap_or(xo);
+                self.core = Some(c.clamp(xo - half_play, xo + half_play));
+            }
+        }
+    }
+
+    /// Xo as a sample-and-hold module reports it at time `t`.
+    fn sample_held(&self, t: f64, period: f64, phase: f64, transport: f64) -> f64 {
+        let n = ((t - transport - phase) / period).floor();
+        let ts = phase + n * period;
+        let k = if ts <= 0.0 {
+            0
+        } else {
+            (ts / self.plant_dt).round() as usize
+        };
+        let i = k.saturating_sub(self.held_start).min(self.held.len() - 1);
+        self.held[i]
     }
 
     /// Read every sensor at time `t` in state `x` with load `ft`.
@@ -134,6 +185,7 @@ impl Sensors {
             // initial value before the line has filled).
             xo = self.history.front().copied().unwrap_or(x[LV1]);
         }
+        let mut ft = ft;
         let (mut p1, mut p2) = (x[P1], x[P2]);
         for e in &self.effects {
             match *e {
@@ -154,6 +206,27 @@ impl Sensors {
                     p1 = p_sat * (p1 / p_sat).tanh() + offset;
                 }
                 Effect::LvdtDrift { rate } => xo += rate * t,
+                Effect::LvdtSampleHold {
+                    period,
+                    phase,
+                    transport,
+                } => xo = self.sample_held(t, period, phase, transport),
+                Effect::StickyLvdtCore { .. } => xo = self.core.unwrap_or(xo),
+                Effect::LoadCellError {
+                    gain_err,
+                    offset,
+                    cubic,
+                    f_ref,
+                } => ft = ft * (1.0 + gain_err) + offset + cubic * (ft / f_ref).powi(3),
+                Effect::MainsHum {
+                    amp,
+                    freq_hz,
+                    amp3,
+                    phase,
+                } => {
+                    let w = 2.0 * std::f64::consts::PI * freq_hz;
+                    p1 += amp * (w * t + phase).sin() + amp3 * (3.0 * (w * t + phase)).sin();
+                }
                 _ => {}
             }
         }
