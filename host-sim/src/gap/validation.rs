@@ -363,9 +363,21 @@ pub fn rig_log_on(
     effects: &Effects,
     seed: u64,
 ) -> RunLog {
+    let controller = ControllerConfig::preset(Preset::Paper, kind);
+    rig_log_with(plant, scenario, controller, effects, seed)
+}
+
+/// [`rig_log_on`] under the controller `controller`.
+pub fn rig_log_with(
+    plant: Plant,
+    scenario: Scenario,
+    controller: ControllerConfig,
+    effects: &Effects,
+    seed: u64,
+) -> RunLog {
     let spec = RunSpec {
         scenario,
-        controller: ControllerConfig::preset(Preset::Paper, kind),
+        controller,
         plant,
         effects: *effects,
         sensors: SensorMode::Realistic,
