@@ -47,7 +47,17 @@ pub fn wide_fit(d: &Diagnosis, details: &Details, dt_s: f64) -> Option<WideFit> 
         parameters: None,
         ..details.effects
     };
-    let fit = |e: &Effects| wide::fit(&details.fit, &details.check, &details.base, e, dt_s);
+    let start = wide::structural(&details.fit, &details.base);
+    let fit = |e: &Effects| {
+        wide::fit(
+            &details.fit,
+            &details.check,
+            &details.base,
+            e,
+            dt_s,
+            start.as_deref(),
+        )
+    };
     let around = fit(&effects);
     // A rig off in many parameters at once can lend a named effect part of
     // its gap: the parameters are also fitted alone, and the held-out

@@ -105,13 +105,16 @@ fn scaled(base: &PlantParams, theta: &[f64]) -> PlantParams {
 
 /// Fit the groups on `fit` from `base`'s parameters, with `effects` on,
 /// and measure the result on `check`; `None` where the model cannot be
-/// replayed.
+/// replayed. `structural_start` is [`structural`] on the same fit runs
+/// (it does not depend on the effects, so a caller fitting around several
+/// computes it once).
 pub fn fit(
     fit: &[Run],
     check: &[Run],
     base: &Plant,
     effects: &Effects,
     dt_s: f64,
+    structural_start: Option<&[f64]>,
 ) -> Option<WideFit> {
     let n = GROUPS.len();
     // The start: the structural fit where the whole model replays the fit
@@ -123,8 +126,8 @@ pub fn fit(
         lsq::residuals(fit, &plant, effects, dt_s).map_or(f64::INFINITY, |r| lsq::ss(&r))
     };
     let nominal = vec![0.0; n];
-    let start = match structural(fit, base) {
-        Some(s) if replayed(&s) < replayed(&nominal) => s,
+    let start = match structural_start {
+        Some(s) if replayed(s) < replayed(&nominal) => s.to_vec(),
         _ => nominal,
     };
     let floor = lsq::noise_floor(fit).sqrt();
@@ -234,7 +237,16 @@ mod tests {
         let fit_runs = run(fit_scenario(), ControllerKind::MpcEso, 21, "f");
         let check_runs = run(check_scenario(), ControllerKind::Pid, 22, "c");
         let nominal_check = gap(&check_runs, &base, &Effects::NONE, 5e-4);
-        let w = fit(&fit_runs, &check_runs, &base, &Effects::NONE, 5e-4).unwrap();
+        let start = structural(&fit_runs, &base);
+        let w = fit(
+            &fit_runs,
+            &check_runs,
+            &base,
+            &Effects::NONE,
+            5e-4,
+            start.as_deref(),
+        )
+        .unwrap();
         assert!(nominal_check > 5.0, "{nominal_check}");
         assert!(w.check_gap < 1.0 && w.fit_gap < 1.0, "{w:?}");
         assert!(confirmed(&w, nominal_check, nominal_check));
@@ -293,7 +305,15 @@ mod tests {
         assert!(off(p.v_max_mps, truth.v_max_mps) < 0.02, "{theta:?}");
         assert!(off(p.tau_m_s, truth.tau_m_s) < 0.05, "{theta:?}");
         assert!(off(p.m_kg, truth.m_kg) < 0.1, "{theta:?}");
-        let w = fit(&fit_runs, &check_runs, &base, &Effects::NONE, 5e-4).unwrap();
+        let w = fit(
+            &fit_runs,
+            &check_runs,
+            &base,
+            &Effects::NONE,
+            5e-4,
+            Some(&theta),
+        )
+        .unwrap();
         assert!(w.fit_gap < 50.0 && w.check_gap < 50.0, "{w:?}");
         assert!(
             off(
