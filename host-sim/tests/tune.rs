@@ -19,6 +19,7 @@ fn setup(params: PlantParams, evals: u64) -> TuneSetup {
         rig: RigFile {
             params,
             effects: Effects::default(),
+            alternatives: Vec::new(),
         },
         hose: HoseModel::Nonlinear,
         base,

@@ -18,8 +18,8 @@ use crate::sim::config::{rig_file_text, RigFile};
 
 /// The identified rig: `base`'s parameters, scaled by the verdict's
 /// `parameters` ratios when it has them, with the verdict's other effects;
-/// with `wide`, its parameters instead. `none` and `unexplained` without
-/// `wide` identify the nominal rig.
+/// with `wide`, its parameters instead, and its alternatives. `none` and
+/// `unexplained` without `wide` identify the nominal rig.
 pub fn rig(details: &Details, wide: Option<&WideFit>) -> RigFile {
     let mut effects = details.effects;
     let ratios = effects.parameters.take();
@@ -31,7 +31,11 @@ pub fn rig(details: &Details, wide: Option<&WideFit>) -> RigFile {
         (None, Some(r)) => r.apply(details.base.params()),
         (None, None) => *details.base.params(),
     };
-    RigFile { params, effects }
+    RigFile {
+        params,
+        effects,
+        alternatives: wide.map(|w| w.alternatives.clone()).unwrap_or_default(),
+    }
 }
 
 /// The wide fit of the rig's parameters, around the verdict's effect (not
@@ -161,6 +165,7 @@ mod tests {
             fit_gap: 1.0,
             check_gap: 1.0,
             effects,
+            alternatives: Vec::new(),
             evals: 0,
         };
         let alone = rig(&details, Some(&wide(Effects::NONE)));

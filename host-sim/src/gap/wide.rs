@@ -25,6 +25,13 @@
 //!
 //! Parameters the runs do not excite stay near their nominal values (the
 //! prior holds them there); the rig file lists those that moved.
+//!
+//! The runs do not determine every direction of the parameters alike: a
+//! line's compliance is seen, its split between the oil (bulk modulus) and
+//! the hose (length) hardly. The fit's [`alternatives`] are rigs about as
+//! consistent with the runs as the identified one, [`SPREAD_SIGMAS`]
+//! standard deviations along the least determined directions; `tune`
+//! checks its settings on them as well.
 
 use super::closures::RunData;
 use super::equations::residuals;
@@ -73,6 +80,21 @@ pub const PRIOR_SIGMA_LN: f64 = 0.26;
 pub const PRIOR_SCALES: [f64; 3] = [30.0, 5.0, 1.0];
 /// Step of the finite differences, in ln(ratio).
 const H_LN: f64 = 0.03;
+/// Standard deviations from the identified rig at which the
+/// [`alternatives`] lie (about a 95 % interval along each direction).
+pub const SPREAD_SIGMAS: f64 = 2.0;
+/// Directions of the fit's uncertainty given as alternatives, the least
+/// determined first (two rigs each).
+pub const SPREAD_DIRECTIONS: usize = 2;
+/// Standard deviation, in ln(ratio), below which a direction is left out:
+/// within 5 %, `tune`'s own draws (+-10 % on every parameter) cover it.
+pub const SPREAD_MIN_LN: f64 = 0.05;
+/// Share of a direction's information that must come from the runs for
+/// it to give alternatives. A direction the runs do not see (a servo speed
+/// no run reaches) is known only as well as the prior's +-30 %: the
+/// stress test's tolerance, not what its user knows of the rig, and a
+/// tune held to it would give up what the runs do show.
+pub const SPREAD_SEEN: f64 = 0.5;
 
 /// A wide fit's outcome.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,6 +109,8 @@ pub struct WideFit {
     pub check_gap: f64,
     /// The effects fitted around (the verdict's, or none).
     pub effects: Effects,
+    /// Rigs about as consistent with the fit runs ([`alternatives`]).
+    pub alternatives: Vec<PlantParams>,
     /// Replays used.
     pub evals: usize,
 }
@@ -168,8 +192,80 @@ pub fn fit(
         fit_gap: gap(fit, &plant, effects, dt_s),
         check_gap: gap(check, &plant, effects, dt_s),
         effects: *effects,
+        alternatives: alternatives(&r)
+            .iter()
+            .map(|theta| scaled(base.params(), theta))
+            .collect(),
         evals: evals + 2,
     })
+}
+
+/// The fit's uncertainty as alternative parameter sets (ln(ratios) of the
+/// [`GROUPS`], within [`BOUNDS`]): [`SPREAD_SIGMAS`] standard deviations
+/// either way along each of the [`SPREAD_DIRECTIONS`] least determined
+/// directions that the runs see ([`SPREAD_SEEN`]) and whose standard
+/// deviation is at least [`SPREAD_MIN_LN`].
+///
+/// `r` is the last Levenberg-Marquardt fit of [`fit`]: its residuals are the
+/// runs' block means followed by one prior row per group. The covariance
+/// is the Gauss-Newton one, (J^T J / s^2 + I / PRIOR_SIGMA_LN^2)^-1, over
+/// the runs' rows J: s^2 is their mean square at the fit, inflated by
+/// (1 + rho) / (1 - rho) for their lag-1 correlation rho (consecutive
+/// blocks of a residual that is mostly model error are not independent
+/// samples), and the prior is a built rig's tolerance ([`PRIOR_SIGMA_LN`],
+/// which bounds what the runs leave open).
+pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
+    const P: usize = GROUPS.len();
+    let p = P;
+    let Some(nd) =
+        r.r.len()
+            .checked_sub(p)
+            .filter(|n| *n > p && r.x.len() == P)
+    else {
+        return Vec::new();
+    };
+    let rows = &r.r[..nd];
+    let rho = lsq::lag1(rows).clamp(0.0, 0.95);
+    let s2 = lsq::ss(rows) / nd as f64 * (1.0 + rho) / (1.0 - rho);
+    if !(s2.is_finite() && s2 > 0.0) || r.jac.len() != p {
+        return Vec::new();
+    }
+    let info = nalgebra::SMatrix::<f64, P, P>::from_fn(|i, j| {
+        let prior = if i == j {
+            1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN)
+        } else {
+            0.0
+        };
+        lsq::dot(&r.jac[i][..nd], &r.jac[j][..nd]) / s2 + prior
+    });
+    if info.iter().any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let eig = nalgebra::SymmetricEigen::new(info);
+    // The least information, the largest standard deviation.
+    let mut order: Vec<usize> = (0..p).collect();
+    order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
+    let (lo, hi) = (BOUNDS.0.ln(), BOUNDS.1.ln());
+    let mut out = Vec::new();
+    let prior = 1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN);
+    let seen = order
+        .iter()
+        .filter(|k| eig.eigenvalues[**k] >= prior / (1.0 - SPREAD_SEEN));
+    for &k in seen.take(SPREAD_DIRECTIONS) {
+        let sigma = 1.0 / eig.eigenvalues[k].max(f64::MIN_POSITIVE).sqrt();
+        if sigma < SPREAD_MIN_LN {
+            break;
+        }
+        let v = eig.eigenvectors.column(k);
+        for sign in [1.0, -1.0] {
+            out.push(
+                (0..p)
+                    .map(|i| (r.x[i] + sign * SPREAD_SIGMAS * sigma * v[i]).clamp(lo, hi))
+                    .collect(),
+            );
+        }
+    }
+    out
 }
 
 /// The groups' ln(ratios) fitted to the structural residuals of the fit
@@ -330,6 +426,79 @@ mod tests {
             off(p.v_max_mps, base.params().v_max_mps) < 0.01,
             "{theta:?}"
         );
+    }
+
+    /// Two groups the runs see mostly as their sum (the oil's and the
+    /// hose's shares of a line's compliance), their difference only
+    /// weakly: the alternatives lie along the difference, SPREAD_SIGMAS of
+    /// its standard deviation away; every well-determined group stays put.
+    /// Where the runs do not see the difference at all (the prior alone
+    /// bounds it), and where they see everything, there are none.
+    #[test]
+    fn the_alternatives_follow_what_the_runs_leave_open() {
+        const P: usize = GROUPS.len();
+        let (hose, oil) = (6, 7);
+        let n = 20 * P;
+        let prior = 1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN);
+        // The difference's standard deviation: 0.1 in ln(ratio), from the
+        // n / P rows that see it (+-eps) and the prior; residuals of
+        // alternating sign (no lag-1 correlation to inflate by), a mean
+        // square of 0.01.
+        let sigma: f64 = 0.1;
+        let eps = ((1.0 / (sigma * sigma) - prior) * 0.01 / (2.0 * (n / P) as f64)).sqrt();
+        let fit_with = |eps: f64| {
+            let mut r: Vec<f64> = (0..n)
+                .map(|k| if k % 2 == 0 { 0.1 } else { -0.1 })
+                .collect();
+            r.extend([0.0; P]);
+            let jac: Vec<Vec<f64>> = (0..P)
+                .map(|i| {
+                    (0..n + P)
+                        .map(|k| match (k < n, k % P) {
+                            (false, _) => 0.0,
+                            (true, row) if i == hose || i == oil => {
+                                if row == hose {
+                                    10.0
+                                } else if row == oil {
+                                    if i == hose {
+                                        eps
+                                    } else {
+                                        -eps
+                                    }
+                                } else {
+                                    0.0
+                                }
+                            }
+                            (true, row) if row == i => 10.0,
+                            _ => 0.0,
+                        })
+                        .collect()
+                })
+                .collect();
+            lsq::LsqFit {
+                x: vec![0.0; P],
+                rss: lsq::ss(&r),
+                n: r.len(),
+                jac,
+                r,
+                evals: 0,
+            }
+        };
+        let alt = alternatives(&fit_with(eps));
+        assert_eq!(alt.len(), 2, "{alt:?}");
+        let along = SPREAD_SIGMAS * sigma / 2f64.sqrt();
+        for a in &alt {
+            assert!((a[hose].abs() - along).abs() < 1e-6, "{along} {a:?}");
+            assert!((a[hose] + a[oil]).abs() < 1e-9, "{a:?}");
+            for (i, t) in a.iter().enumerate() {
+                assert!(i == hose || i == oil || t.abs() < 1e-9, "{a:?}");
+            }
+        }
+        assert!((alt[0][hose] + alt[1][hose]).abs() < 1e-9);
+        // Unseen: the prior alone bounds the difference.
+        assert!(alternatives(&fit_with(0.0)).is_empty());
+        // Seen well: within SPREAD_MIN_LN.
+        assert!(alternatives(&fit_with(100.0 * eps)).is_empty());
     }
 
     #[test]

@@ -179,14 +179,30 @@ pub struct RigFile {
     pub params: PlantParams,
     /// Its effects (none in the short form).
     pub effects: Effects,
+    /// Other parameter sets about as consistent with the runs the rig was
+    /// identified from (`[[identification.alternatives]]`, which `gap
+    /// --rig-out` writes; `tune` checks its settings on them; none in the
+    /// short form). Runs use `params` only.
+    pub alternatives: Vec<PlantParams>,
 }
 
 /// The long form of a rig file: a scenario's `[plant]` table with only
-/// `[plant.params]` and `[plant.effects.<name>]` (what `gap --rig-out` writes).
+/// `[plant.params]` and `[plant.effects.<name>]` (what `gap --rig-out` writes),
+/// and the identification's alternatives.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RigToml {
     plant: RigSection,
+    identification: Option<IdentificationToml>,
+}
+
+/// `[identification]`: what the identification left open.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IdentificationToml {
+    /// Parameter tables as `[plant.params]` (nominal where not given).
+    #[serde(default)]
+    alternatives: Vec<ParamsToml>,
 }
 
 #[derive(Deserialize)]
@@ -209,6 +225,7 @@ pub fn rig_str(text: &str, file: &str) -> Result<RigFile, FileError> {
         return Ok(RigFile {
             params: plant_params_str(text, file)?,
             effects: Effects::default(),
+            alternatives: Vec::new(),
         });
     }
     let t: RigToml = parse(text, file)?;
@@ -225,7 +242,24 @@ pub fn rig_str(text: &str, file: &str) -> Result<RigFile, FileError> {
         field: Some("plant.effects".into()),
         message: e.to_string(),
     })?;
-    Ok(RigFile { params, effects })
+    let alternatives = match &t.identification {
+        Some(id) => id
+            .alternatives
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                a.params().map_err(|e| {
+                    params_error(text, file, &format!("identification.alternatives[{i}]."), e)
+                })
+            })
+            .collect::<Result<_, _>>()?,
+        None => Vec::new(),
+    };
+    Ok(RigFile {
+        params,
+        effects,
+        alternatives,
+    })
 }
 
 /// A rig file (`--plant FILE.toml`), as [`rig_str`].
@@ -233,29 +267,39 @@ pub fn read_plant_file(path: &Path) -> Result<RigFile, FileError> {
     rig_str(&read(path)?, &path.display().to_string())
 }
 
-/// The text of a rig file in the long form of [`rig_str`]: `[plant.params]`
-/// with every parameter that differs from nominal (shortest round-trip
-/// notation, so the file reads back bit for bit) and the effects'
-/// `[plant.effects.<name>]` tables. `header` becomes comment lines.
-pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
-    let mut s: String = header.lines().map(|l| format!("# {l}\n")).collect();
+/// The keys of `p` that differ from nominal as TOML lines under `table`
+/// (its `.hose` sub-table for the hose's), each table opened by `open`
+/// (`[...]` or `[[...]]`); nothing for the nominal rig.
+fn params_text(p: &PlantParams, table: &str, open: (&str, &str)) -> String {
+    let mut s = String::new();
     let off: Vec<&ParamKey> = params::KEYS
         .iter()
-        .filter(|k| k.get(&rig.params).to_bits() != k.get(&PlantParams::NOMINAL).to_bits())
+        .filter(|k| k.get(p).to_bits() != k.get(&PlantParams::NOMINAL).to_bits())
         .collect();
     let (hose, top): (Vec<&ParamKey>, Vec<&ParamKey>) = off.iter().partition(|k| k.is_hose());
-    if !top.is_empty() {
-        s += "\n[plant.params]\n";
+    if !top.is_empty() || open.0 == "[[" {
+        s += &format!("\n{}{table}{}\n", open.0, open.1);
         for k in &top {
-            s += &format!("{} = {:e}\n", k.name, k.get(&rig.params));
+            s += &format!("{} = {:e}\n", k.name, k.get(p));
         }
     }
     if !hose.is_empty() {
-        s += "\n[plant.params.hose]\n";
+        s += &format!("\n[{table}.hose]\n");
         for k in &hose {
-            s += &format!("{} = {:e}\n", k.field(), k.get(&rig.params));
+            s += &format!("{} = {:e}\n", k.field(), k.get(p));
         }
     }
+    s
+}
+
+/// The text of a rig file in the long form of [`rig_str`]: `[plant.params]`
+/// with every parameter that differs from nominal (shortest round-trip
+/// notation, so the file reads back bit for bit), the effects'
+/// `[plant.effects.<name>]` tables and the alternatives'
+/// `[[identification.alternatives]]`. `header` becomes comment lines.
+pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
+    let mut s: String = header.lines().map(|l| format!("# {l}\n")).collect();
+    s += &params_text(&rig.params, "plant.params", ("[", "]"));
     #[derive(Serialize)]
     struct Out<'a> {
         plant: OutPlant<'a>,
@@ -273,6 +317,13 @@ pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
         .expect("effects are numbers and tables: TOML can hold them");
         s += "\n";
         s += &t;
+    }
+    if !rig.alternatives.is_empty() {
+        s += "\n# Parameter sets about as consistent with the identification runs (two standard\n\
+              # deviations along the directions they determine least); `tune` checks on them.\n";
+        for a in &rig.alternatives {
+            s += &params_text(a, "identification.alternatives", ("[[", "]]"));
+        }
     }
     s
 }
@@ -1297,7 +1348,19 @@ preset = "fast"
         let mut params = PlantParams::NOMINAL;
         params.m_kg = 57.123456789;
         params.hose.cs0_m3pp = 4.1e-13;
-        let rig = RigFile { params, effects };
+        // The identification's alternatives: one off in a top-level key and
+        // a hose key, one in a hose key alone, one nominal.
+        let mut a = params;
+        a.beta_e_pa = 1.234567891e9;
+        a.hose.ce0_m3pp = 9.87654321e-14;
+        let mut b = PlantParams::NOMINAL;
+        b.hose.tau_s_s = 0.41;
+        let alternatives = vec![a, b, PlantParams::NOMINAL];
+        let rig = RigFile {
+            params,
+            effects,
+            alternatives,
+        };
         let text = rig_file_text(&rig, "a header\nof two lines");
         assert!(text.starts_with("# a header\n# of two lines\n"), "{text}");
         assert_eq!(rig_str(&text, "r.toml").unwrap(), rig, "{text}");
@@ -1315,6 +1378,12 @@ preset = "fast"
             ),
             ("[plant.effects.leakage]\ng = 1e-13\n", Some(2), "g"),
             ("[plant]\nhose = \"rigid\"\n", Some(2), "hose"),
+            (
+                "[plant.params]\nm_kg = 50.0\n[[identification.alternatives]]\nm_kg = 50.0\n\
+                 [[identification.alternatives]]\nm_kg = 0.0\n",
+                Some(6),
+                "identification.alternatives[1].m_kg",
+            ),
         ] {
             let e = rig_str(text, "r.toml").unwrap_err();
             assert_eq!(

@@ -119,7 +119,8 @@ pub enum TuneError {
 
 /// The uncertainty set of the robustness check: `draws` rigs with every
 /// physical parameter drawn uniformly within +-`fraction` of the identified
-/// rig's value (seeds 0..draws).
+/// rig's value (seeds 0..draws); the rig file's alternatives are checked
+/// besides ([`robust_check`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Robust {
     /// Rigs drawn.
@@ -539,7 +540,9 @@ impl CostFunction for Objective<'_> {
 
 /// The worst [`cost`] of `cfg` over the rigs around the identified one
 /// (relative to `reference`, the starting settings on the identified rig),
-/// or the first rig on which it is infeasible.
+/// or the first rig on which it is infeasible: the rig file's alternatives
+/// (what the identification left open, [`RigFile::alternatives`]), then
+/// the [`Robust`] draws around the identified rig.
 pub fn robust_check(
     setup: &TuneSetup,
     cfg: &ControllerConfig,
@@ -552,18 +555,25 @@ pub fn robust_check(
         .into_iter()
         .map(|k| (k, spread))
         .collect();
-    let mut worst = 0.0f64;
-    for seed in 0..setup.robust.draws {
+    let alternatives = setup
+        .rig
+        .alternatives
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (*p, format!("alternative {} of the identification", i + 1)));
+    let drawn = (0..setup.robust.draws).map(|seed| {
         let (p, _) = params::draw(&setup.rig.params, &keys, seed);
+        let what = format!("rig drawn within +-{} (seed {seed})", setup.robust.fraction);
+        (p, what)
+    });
+    let mut worst = 0.0f64;
+    for (p, what) in alternatives.chain(drawn) {
         if params::check(&p).is_err() {
             continue;
         }
         let e = evaluate(setup, &p, cfg);
         if let Some(why) = e.infeasible {
-            return Err(format!(
-                "rig drawn within +-{} (seed {seed}): {why}",
-                setup.robust.fraction
-            ));
+            return Err(format!("{what}: {why}"));
         }
         worst = worst.max(cost(&e, reference));
     }
