@@ -14,7 +14,8 @@ use super::lsq;
 use super::replay;
 use super::run::Run;
 use crate::model::effects::{
-    self, EffectKind, MotorLimit, Servo, ServoEnvelope, SpeedLoop, ENVELOPE_SPEEDS_MPS,
+    self, CommandMap, EffectKind, MotorLimit, NamedEffect, Servo, ServoEnvelope, SpeedLoop,
+    COMMAND_SPEEDS_MPS, ENVELOPE_SPEEDS_MPS,
 };
 use crate::model::plant::Plant;
 
@@ -249,7 +250,8 @@ pub fn motor_limit(runs: &[Run], plant: &Plant) -> Option<Vec<f64>> {
 /// refined on a finer axis around it, and Nelder-Mead polishes the result.
 /// Knots the runs never reach stay at the force of the knot before (flat).
 /// A ramp of the drive is tried under the result, and the drive's own speed
-/// loop ([`SpeedLoop`]) in a search of its own.
+/// loop ([`SpeedLoop`]) and its command path ([`CommandMap`]) in searches of
+/// their own.
 pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64, f64)> {
     let nominal = total_error(runs, plant, Servo::Nominal, true, f64::INFINITY);
     // Only where the gap is in the servo: the nominal servo leaves Xi off by
@@ -277,9 +279,24 @@ pub fn servo_envelope(runs: &[Run], plant: &Plant) -> Option<(ServoEnvelope, f64
         .then(|| search.with_loop())
         .flatten()
         .filter(|(el, _)| *el < (1.0 - LOOP_GAIN) * best);
-    let (e, env) = looped.or(plain)?;
+    let enveloped = looped.or(plain);
+    // The drive's command path, searched on its own under no force limit
+    // (a dead band held by an envelope's low force would be a wrong
+    // explanation that fits), kept where it removes LOOP_GAIN of the best
+    // error so far.
+    let best = enveloped.map_or(nominal, |p| p.0);
+    let mapped = search
+        .with_command_map()
+        .filter(|(em, _)| *em < (1.0 - LOOP_GAIN) * best);
+    let (e, env) = mapped.or(enveloped)?;
     Some((env, e, nominal))
 }
+
+/// Jacobians of the command map's Levenberg-Marquardt fit at most.
+const MAP_ITERS: usize = 30;
+/// The force of the command map's search, N: none of the runs' forces
+/// reaches it (the named form's largest).
+const MAP_FORCE_N: f64 = MotorLimit::PARAMS[0].max;
 
 /// Squared Xi error per sample (in scale units) above which an envelope
 /// leaves room for the drive's speed loop (twice the scale, RMS).
@@ -342,6 +359,7 @@ fn envelope(m: f64, a: &[f64], ramp: Option<f64>) -> ServoEnvelope {
         force_n: f,
         accel_max_mps2: ramp,
         speed_loop: None,
+        command_map: None,
     }
 }
 
@@ -538,6 +556,60 @@ impl EnvelopeSearch<'_> {
         let mut env = envelope(m, &a, self.ramp);
         env.speed_loop = Some(lp);
         e.is_finite().then_some((e, env))
+    }
+
+    /// The drive's command path ([`CommandMap`]) under an envelope that
+    /// never limits: Levenberg-Marquardt on the encoder's errors over the
+    /// map's increments between its knots (each non-negative, so the map
+    /// never falls; in mm/s), from the ideal path. The error and the
+    /// envelope.
+    fn with_command_map(&self) -> Option<(f64, ServoEnvelope)> {
+        let n = COMMAND_SPEEDS_MPS.len() - 1;
+        let span = |i: usize| (COMMAND_SPEEDS_MPS[i + 1] - COMMAND_SPEEDS_MPS[i]) * 1e3;
+        let map_of = |u: &[f64]| {
+            let mut m = CommandMap::IDEAL;
+            let mut t = 0.0;
+            for (i, d) in u.iter().enumerate() {
+                t += d.max(0.0) * 1e-3;
+                m.target_mps[i] = t;
+            }
+            m
+        };
+        let mass = MotorLimit::PARAMS[1].typical;
+        let with = |m: CommandMap| {
+            let mut s = envelope(mass, &[MAP_FORCE_N; K], self.ramp);
+            s.speed_loop = self.speed_loop;
+            s.command_map = Some(m);
+            s
+        };
+        let u0: Vec<f64> = (0..n).map(span).collect();
+        // A knot the runs never reach has no say in the errors: a row per
+        // increment, of one unit per knot span from the ideal path (the
+        // errors are in units of the encoder's scale, thousands where the
+        // path differs), keeps it there and the normal equations regular.
+        let f = |u: &[f64]| {
+            let s = with(map_of(u));
+            let mut r = servo_residuals(self.runs, self.plant, Servo::Envelope(&s))?;
+            r.extend(
+                u.iter()
+                    .zip(&u0)
+                    .enumerate()
+                    .map(|(i, (x, x0))| (x - x0) / span(i)),
+            );
+            Some(r)
+        };
+        let h: Vec<f64> = (0..n).map(|i| 0.02 * span(i)).collect();
+        let hi: Vec<f64> = (0..n).map(|i| 3.0 * span(i)).collect();
+        let r = lsq::levenberg_marquardt(&f, &u0, None, &h, &vec![0.0; n], &hi, MAP_ITERS)?;
+        let s = with(map_of(&r.x));
+        let e = total_error(
+            self.runs,
+            self.plant,
+            Servo::Envelope(&s),
+            true,
+            f64::INFINITY,
+        );
+        s.is_valid().then_some((e, s))
     }
 
     /// Levenberg-Marquardt on the Xi errors over the loop's mass, force,
@@ -777,6 +849,7 @@ mod tests {
                 windup: true,
                 damping_nspm: 2000.0,
             }),
+            command_map: None,
         };
         let run = envelope_run(truth);
         let runs = std::slice::from_ref(&run);
@@ -804,6 +877,7 @@ mod tests {
             force_n: [cap; K],
             accel_max_mps2: None,
             speed_loop: None,
+            command_map: None,
         };
         let e = Effects {
             servo_envelope: Some(truth),
@@ -838,6 +912,7 @@ mod tests {
             force_n: [5000.0; 6],
             accel_max_mps2: Some(2.0),
             speed_loop: None,
+            command_map: None,
         };
         let run = envelope_run(truth);
         let runs = std::slice::from_ref(&run);
@@ -845,6 +920,49 @@ mod tests {
         assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");
         let ramp = env.accel_max_mps2.expect("a ramp");
         assert!((ramp / 2.0 - 1.0).abs() < 0.05, "{env:?}");
+    }
+
+    /// A drive with a dead band of 1 mm/s in its command path (the target
+    /// is the command less 1 mm/s) and no force limit, run through slow
+    /// commands on either side of it: the command map's search finds the
+    /// band and the unit slope above it where the envelope cannot.
+    #[test]
+    fn learns_the_dead_band_of_a_drive() {
+        let band = CommandMap {
+            target_mps: std::array::from_fn(|i| (COMMAND_SPEEDS_MPS[i + 1] - 1e-3).max(0.0)),
+        };
+        let truth = ServoEnvelope {
+            mass_eq_kg: 200.0,
+            force_n: [1e5; K],
+            accel_max_mps2: None,
+            speed_loop: None,
+            command_map: Some(band),
+        };
+        let e = Effects {
+            servo_envelope: Some(truth),
+            ..Effects::NONE
+        };
+        let run = open_loop_run(
+            e,
+            4.0,
+            (
+                vec![0.3, 0.8, 1.3, 1.8, 2.3, 2.8, 3.3],
+                &[0.0, 0.0008, 0.003, -0.002, 0.0015, -0.006, 0.02, 0.0],
+            ),
+            (vec![0.1], &[0.0, 300.0]),
+        );
+        let runs = std::slice::from_ref(&run);
+        let (env, err, nominal) = servo_envelope(runs, &Plant::nominal()).expect("fitted");
+        assert!(err < 1e-2 * nominal, "{err:e} against {nominal:e}: {env:?}");
+        let map = env.command_map.expect("a command map");
+        for c in [0.8e-3, 1.5e-3, 2e-3, 3e-3, 6e-3, 20e-3] {
+            let (got, want) = (map.target_of(c), (c - 1e-3).max(0.0));
+            assert!(
+                (got - want).abs() < 0.05e-3 + 0.03 * want,
+                "{c}: {got} {want}: {map:?}"
+            );
+            assert_eq!(map.target_of(-c), -got);
+        }
     }
 
     /// A torque-speed curve that the named form cannot take (the force
@@ -858,6 +976,7 @@ mod tests {
             force_n: [1200.0, 1200.0, 1200.0, 900.0, 600.0, 300.0],
             accel_max_mps2: None,
             speed_loop: None,
+            command_map: None,
         };
         // Full command against 800 N settles where A(v) = 800 N, near
         // 67 mm/s.

@@ -173,6 +173,7 @@ fn general_family_cases() -> Vec<Case> {
                     force_n: [1100.0, 1100.0, 900.0, 600.0, 300.0, 0.0],
                     accel_max_mps2: None,
                     speed_loop: None,
+                    command_map: None,
                 }),
                 ..Effects::NONE
             },

@@ -16,7 +16,7 @@
 //! | `air` | entrained air: 1/beta_eff = 1/beta_e + x_a / (kappa P_abs) (P_atm / P_abs)^(1/kappa) | `fraction` (air volume fraction at P_atm, typ. 0.005), kappa = 1.4 |
 //! | `sensor_delay` | the LVDT reading delayed and low-pass filtered; pressure readings low-pass filtered | `xo_delay_s` (typ. 3e-3), `xo_tau_s` (typ. 2e-3), `p_tau_s` (typ. 1e-3) |
 //! | `motor_limit` | servo force (torque) limit on a reflected mass m, and a speed cap: the speed loop's force m a + F, F = AP1 P1 - AP2 P2, is clamped to +-F_max, so the acceleration limit depends on the load; the speed target is clamped to +-v_cap | `force_max_n` (typ. 2000), `mass_eq_kg` (typ. 200), `speed_max_mps` (typ. 0.1) |
-//! | `motor_limit`, general family ([`ServoEnvelope`]) | the drive's force envelope over speed, learned from the encoder: the speed loop's force m a + F is clamped to +-A(abs(v)) while motoring (A piecewise linear over 0 ... 0.1 m/s, non-increasing: a torque-speed curve of any shape) and to +-A(0) while braking; no separate speed cap (A falling to 0 is one); optionally a ramp: the asked acceleration clamped to +-a_max first, whatever the load; optionally the drive's own PI speed loop in place of the ideal one ([`SpeedLoop`]: no load feed-forward, an integrator that winds up while clamped or holds, a screw loss) | `mass_eq_kg`, `force_n` (A at the knots [`ENVELOPE_SPEEDS_MPS`]), `accel_max_mps2`, `speed_loop` |
+//! | `motor_limit`, general family ([`ServoEnvelope`]) | the drive's force envelope over speed, learned from the encoder: the speed loop's force m a + F is clamped to +-A(abs(v)) while motoring (A piecewise linear over 0 ... 0.1 m/s, non-increasing: a torque-speed curve of any shape) and to +-A(0) while braking; no separate speed cap (A falling to 0 is one); optionally a ramp: the asked acceleration clamped to +-a_max first, whatever the load; optionally the drive's own PI speed loop in place of the ideal one ([`SpeedLoop`]: no load feed-forward, an integrator that winds up while clamped or holds, a screw loss); optionally its command path ([`CommandMap`]: the speed target it makes of a command, a dead band or a gain) | `mass_eq_kg`, `force_n` (A at the knots [`ENVELOPE_SPEEDS_MPS`]), `accel_max_mps2`, `speed_loop`, `command_map` |
 //! | `hose_hysteresis`, general family ([`HysteresisSpectrum`]) | a discrete Prandtl-Ishlinskii operator per line: five Dahl elements (yields 10 kPa ... 1 MPa, no stuck share), each adding its compliance as far as it is engaged | `c_m3pp` (five compliances, learned) |
 //! | `hose_hysteresis` | rate-independent wall hysteresis (Dahl type): a hysteretic pressure z per line, dz = dP - abs(dP) z / r, saturating at +-r; its engagement e = (1 + sign(dP) z / r) / 2 goes from 0 right after a pressure reversal to 1 once the pressure has moved on by a few r; the line gains the compliance e c and loses (1 - e) s Ce(P), a share s of the hose wall's compliance held after a reversal | `c_m3pp` (typ. 2e-13), `stuck_share` (typ. 0), `yield_pa` (r, typ. 1e5) |
 //! | `accumulator_thermal` | gas temperature T relaxing to ambient: dT/dt = -(n - 1) T dVg/dt / Vg + (T0 - T)/tau, P_abs = P0_abs (V0/Vg)(T/T0) | `tau_s` (typ. 5) |
@@ -876,6 +876,7 @@ mod tests {
             force_n: [1000.0, 1000.0, 800.0, 400.0, 0.0, 0.0],
             accel_max_mps2: None,
             speed_loop: None,
+            command_map: None,
         };
         assert!(s.is_valid());
         assert_eq!(s.available_n(0.0), 1000.0);
@@ -904,6 +905,7 @@ mod tests {
             force_n: [500.0; 6],
             accel_max_mps2: None,
             speed_loop: None,
+            command_map: None,
         };
         let m = MotorLimit {
             force_max_n: 500.0,
@@ -924,6 +926,7 @@ mod tests {
             force_n: [500.0, 600.0, 0.0, 0.0, 0.0, 0.0],
             accel_max_mps2: None,
             speed_loop: None,
+            command_map: None,
         });
         assert!(e.validate().is_err());
         e.servo_envelope = Some(flat);
@@ -970,6 +973,7 @@ mod tests {
             force_n: [1e5; 6],
             accel_max_mps2: None,
             speed_loop: Some(lp),
+            command_map: None,
         };
         assert!(strong.is_valid());
         let (over, v, v_nom) = run(&strong, 400.0);

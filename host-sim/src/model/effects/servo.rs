@@ -44,7 +44,8 @@ pub const ENVELOPE_SPEEDS_MPS: [f64; 6] = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10];
 /// the named form's force limit, `A` falling to zero at some speed its speed
 /// cap, and any torque-speed curve lies in between. A drive may also ramp
 /// its speed target (`accel_max_mps2`): the asked acceleration is then
-/// clamped to +-that before the force is, whatever the load.
+/// clamped to +-that before the force is, whatever the load. Its command
+/// path may differ from the ideal one ([`CommandMap`]: a dead band, a gain).
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ServoEnvelope {
@@ -60,6 +61,55 @@ pub struct ServoEnvelope {
     /// servo's ideal one (none where absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_loop: Option<SpeedLoop>,
+    /// The drive's command path ([`CommandMap`]) in place of the ideal one
+    /// (none where absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub command_map: Option<CommandMap>,
+}
+
+/// Command speeds of the knots of a [`CommandMap`], m/s: dense below
+/// 3 mm/s, where a drive's dead band and the steps of a quantised command
+/// act, then on to the command limit.
+pub const COMMAND_SPEEDS_MPS: [f64; 12] = [
+    0.0, 0.25e-3, 0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3, 3.0e-3, 5.0e-3, 10e-3, 20e-3, 50e-3, 0.1,
+];
+
+/// The drive's command path: the speed target it makes of a speed command,
+/// the same either way (odd), piecewise linear between the knots
+/// [`COMMAND_SPEEDS_MPS`] (0 at 0, non-decreasing), the last segment's
+/// slope beyond them. A dead band is a map at 0 up to its width, a gain
+/// error a slope other than 1, a finely quantised command its average.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CommandMap {
+    /// Speed target at the command speeds `COMMAND_SPEEDS_MPS[1..]`, m/s.
+    pub target_mps: [f64; 11],
+}
+
+impl CommandMap {
+    /// The ideal command path: the target is the command.
+    pub const IDEAL: Self = Self {
+        target_mps: [
+            0.25e-3, 0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3, 3.0e-3, 5.0e-3, 10e-3, 20e-3, 50e-3, 0.1,
+        ],
+    };
+
+    /// The speed target of the command `vc_mps`, m/s.
+    pub fn target_of(&self, vc_mps: f64) -> f64 {
+        let s = vc_mps.abs();
+        let k = &COMMAND_SPEEDS_MPS;
+        let y = |i: usize| if i == 0 { 0.0 } else { self.target_mps[i - 1] };
+        // The segment [k[i], k[i + 1]] holding s (the last one beyond).
+        let i = k[1..].iter().position(|x| s < *x).unwrap_or(k.len() - 2);
+        let w = (s - k[i]) / (k[i + 1] - k[i]);
+        (y(i) + w * (y(i + 1) - y(i))).copysign(vc_mps)
+    }
+
+    /// Whether the map is usable: finite, non-negative, non-decreasing.
+    pub fn is_valid(&self) -> bool {
+        self.target_mps.iter().all(|t| t.is_finite() && *t >= 0.0)
+            && self.target_mps.windows(2).all(|w| w[1] >= w[0])
+    }
 }
 
 /// The drive's own speed loop, a PI loop on the reflected mass `m` under the
@@ -181,10 +231,11 @@ impl ServoEnvelope {
 
     /// Whether the envelope is usable: finite, a positive mass and force at
     /// rest, forces non-negative and non-increasing with speed, a ramp (if
-    /// any) positive, a speed loop (if any) valid.
+    /// any) positive, a speed loop and a command map (if any) valid.
     pub fn is_valid(&self) -> bool {
         self.accel_max_mps2.is_none_or(|a| a.is_finite() && a > 0.0)
             && self.speed_loop.is_none_or(|l| l.is_valid())
+            && self.command_map.is_none_or(|m| m.is_valid())
             && self.mass_eq_kg.is_finite()
             && self.mass_eq_kg > 0.0
             && self.force_n[0].is_finite()
@@ -225,10 +276,13 @@ pub fn servo_rates(
             let target = vc_mps.clamp(-m.speed_max_mps, m.speed_max_mps);
             (motor_accel(m, (target - v_mps) / tau_s, f_load_n), [0.0; 2])
         }
-        Servo::Envelope(s) => match &s.speed_loop {
-            Some(lp) => s.loop_rates(lp, (vc_mps, tau_s), v_mps, f_load_n, own),
-            None => (s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n), [0.0; 2]),
-        },
+        Servo::Envelope(s) => {
+            let vc_mps = s.command_map.map_or(vc_mps, |m| m.target_of(vc_mps));
+            match &s.speed_loop {
+                Some(lp) => s.loop_rates(lp, (vc_mps, tau_s), v_mps, f_load_n, own),
+                None => (s.accel((vc_mps - v_mps) / tau_s, v_mps, f_load_n), [0.0; 2]),
+            }
+        }
         Servo::Nominal => ((vc_mps - v_mps) / tau_s, [0.0; 2]),
     }
 }
@@ -262,11 +316,12 @@ impl NamedEffect for MotorLimit {
 
 impl GeneralFamily for ServoEnvelope {
     const FORM: &'static str =
-        "general: the servo's force envelope over speed, learned from the encoder";
+        "general: the servo's force envelope over speed and its command path, learned from the encoder";
     const BOTH: &'static str = "the named form and the servo envelope exclude each other";
     const REQUIREMENT: &'static str =
         "servo_envelope: mass_eq_kg and force_n[0] must be > 0, force_n non-negative \
-         and non-increasing with speed, accel_max_mps2 (if given) > 0";
+         and non-increasing with speed, accel_max_mps2 (if given) > 0, \
+         command_map.target_mps (if given) non-negative and non-decreasing";
     /// Valid, and its force at rest and mass within VALID_SPAN times the
     /// named form's largest.
     fn family_valid(&self) -> bool {
@@ -287,6 +342,11 @@ impl GeneralFamily for ServoEnvelope {
             m.push(("loop_integral_radps".to_string(), l.integral_radps));
             m.push(("loop_windup".to_string(), f64::from(u8::from(l.windup))));
             m.push(("loop_damping_nspm".to_string(), l.damping_nspm));
+        }
+        if let Some(c) = self.command_map {
+            for (v, t) in COMMAND_SPEEDS_MPS[1..].iter().zip(c.target_mps) {
+                m.push((format!("command_target_mps_at_{v:.5}_mps"), t));
+            }
         }
         m
     }
