@@ -567,13 +567,13 @@ impl EnvelopeSearch<'_> {
         let n = COMMAND_SPEEDS_MPS.len() - 1;
         let span = |i: usize| (COMMAND_SPEEDS_MPS[i + 1] - COMMAND_SPEEDS_MPS[i]) * 1e3;
         let map_of = |u: &[f64]| {
-            let mut m = CommandMap::IDEAL;
             let mut t = 0.0;
-            for (i, d) in u.iter().enumerate() {
-                t += d.max(0.0) * 1e-3;
-                m.target_mps[i] = t;
+            CommandMap {
+                target_mps: std::array::from_fn(|i| {
+                    t += u[i].max(0.0) * 1e-3;
+                    t
+                }),
             }
-            m
         };
         let mass = MotorLimit::PARAMS[1].typical;
         let with = |m: CommandMap| {

@@ -216,18 +216,17 @@ pub fn fit(
 /// which bounds what the runs leave open).
 pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
     const P: usize = GROUPS.len();
-    let p = P;
     let Some(nd) =
         r.r.len()
-            .checked_sub(p)
-            .filter(|n| *n > p && r.x.len() == P)
+            .checked_sub(P)
+            .filter(|n| *n > P && r.x.len() == P)
     else {
         return Vec::new();
     };
     let rows = &r.r[..nd];
     let rho = lsq::lag1(rows).clamp(0.0, 0.95);
     let s2 = lsq::ss(rows) / nd as f64 * (1.0 + rho) / (1.0 - rho);
-    if !(s2.is_finite() && s2 > 0.0) || r.jac.len() != p {
+    if !(s2.is_finite() && s2 > 0.0) || r.jac.len() != P {
         return Vec::new();
     }
     let info = nalgebra::SMatrix::<f64, P, P>::from_fn(|i, j| {
@@ -243,7 +242,7 @@ pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
     }
     let eig = nalgebra::SymmetricEigen::new(info);
     // The least information, the largest standard deviation.
-    let mut order: Vec<usize> = (0..p).collect();
+    let mut order: Vec<usize> = (0..P).collect();
     order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
     let (lo, hi) = (BOUNDS.0.ln(), BOUNDS.1.ln());
     let mut out = Vec::new();
@@ -259,7 +258,7 @@ pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
         let v = eig.eigenvectors.column(k);
         for sign in [1.0, -1.0] {
             out.push(
-                (0..p)
+                (0..P)
                     .map(|i| (r.x[i] + sign * SPREAD_SIGMAS * sigma * v[i]).clamp(lo, hi))
                     .collect(),
             );

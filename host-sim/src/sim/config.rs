@@ -268,20 +268,23 @@ pub fn read_plant_file(path: &Path) -> Result<RigFile, FileError> {
 }
 
 /// The keys of `p` that differ from nominal as TOML lines under `table`
-/// (its `.hose` sub-table for the hose's), each table opened by `open`
-/// (`[...]` or `[[...]]`); nothing for the nominal rig.
-fn params_text(p: &PlantParams, table: &str, open: (&str, &str)) -> String {
+/// (its `.hose` sub-table for the hose's): a table (`[table]`, left out for
+/// the nominal rig) or, with `array`, an element of an array of tables
+/// (`[[table]]`, always written).
+fn params_text(p: &PlantParams, table: &str, array: bool) -> String {
     let mut s = String::new();
     let off: Vec<&ParamKey> = params::KEYS
         .iter()
         .filter(|k| k.get(p).to_bits() != k.get(&PlantParams::NOMINAL).to_bits())
         .collect();
     let (hose, top): (Vec<&ParamKey>, Vec<&ParamKey>) = off.iter().partition(|k| k.is_hose());
-    if !top.is_empty() || open.0 == "[[" {
-        s += &format!("\n{}{table}{}\n", open.0, open.1);
-        for k in &top {
-            s += &format!("{} = {:e}\n", k.name, k.get(p));
-        }
+    if array {
+        s += &format!("\n[[{table}]]\n");
+    } else if !top.is_empty() {
+        s += &format!("\n[{table}]\n");
+    }
+    for k in &top {
+        s += &format!("{} = {:e}\n", k.name, k.get(p));
     }
     if !hose.is_empty() {
         s += &format!("\n[{table}.hose]\n");
@@ -299,7 +302,7 @@ fn params_text(p: &PlantParams, table: &str, open: (&str, &str)) -> String {
 /// `[[identification.alternatives]]`. `header` becomes comment lines.
 pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
     let mut s: String = header.lines().map(|l| format!("# {l}\n")).collect();
-    s += &params_text(&rig.params, "plant.params", ("[", "]"));
+    s += &params_text(&rig.params, "plant.params", false);
     #[derive(Serialize)]
     struct Out<'a> {
         plant: OutPlant<'a>,
@@ -322,7 +325,7 @@ pub fn rig_file_text(rig: &RigFile, header: &str) -> String {
         s += "\n# Parameter sets about as consistent with the identification runs (two standard\n\
               # deviations along the directions they determine least); `tune` checks on them.\n";
         for a in &rig.alternatives {
-            s += &params_text(a, "identification.alternatives", ("[[", "]]"));
+            s += &params_text(a, "identification.alternatives", true);
         }
     }
     s

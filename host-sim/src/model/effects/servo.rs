@@ -87,13 +87,6 @@ pub struct CommandMap {
 }
 
 impl CommandMap {
-    /// The ideal command path: the target is the command.
-    pub const IDEAL: Self = Self {
-        target_mps: [
-            0.25e-3, 0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3, 3.0e-3, 5.0e-3, 10e-3, 20e-3, 50e-3, 0.1,
-        ],
-    };
-
     /// The speed target of the command `vc_mps`, m/s.
     pub fn target_of(&self, vc_mps: f64) -> f64 {
         let s = vc_mps.abs();
