@@ -633,8 +633,23 @@ impl Plant {
     /// Line flows Qa, Q1, Q2 of docs/model.md section 4.
     #[inline]
     pub fn flows(&self, x: &State) -> Flows {
+        self.flows_with_qa(x, self.accumulator_flow_m3ps(x))
+    }
+
+    /// The accumulator's flow Qa into line 2 (it depends on the gas volume and
+    /// P2 only), m^3/s.
+    #[inline]
+    pub fn accumulator_flow_m3ps(&self, x: &State) -> f64 {
+        self.params.g_acc_m3pspa * (self.p_acc_pa(x.vg_m3) - x.p2_pa)
+    }
+
+    /// [`Plant::flows`] with the accumulator's flow `qa_m3ps` already known
+    /// (the same numbers to the last bit when it is
+    /// [`Plant::accumulator_flow_m3ps`] of `x`).
+    #[inline]
+    pub fn flows_with_qa(&self, x: &State, qa_m3ps: f64) -> Flows {
         let p = &self.params;
-        let qa = p.g_acc_m3pspa * (self.p_acc_pa(x.vg_m3) - x.p2_pa);
+        let qa = qa_m3ps;
         let q1 = p.ap1_m2 * x.vi_mps - p.aa1_m2 * x.vo_mps;
         let q2 = p.aa2_m2 * x.vo_mps - p.ap2_m2 * x.vi_mps + qa;
         Flows {

@@ -262,7 +262,7 @@ impl Rig {
         }
         // Accumulator flow (with the effects' gas states) and leakage depend
         // on the state only; the piston's velocity enters through Q1 and Q2.
-        let qa_nom = self.plant.flows(&x).qa_m3ps;
+        let qa_nom = self.plant.accumulator_flow_m3ps(&x);
         let gas = Gas {
             params: p,
             vg_m3: x.vg_m3,
@@ -270,8 +270,9 @@ impl Rig {
         };
         let qa = e.accumulator_flow_m3ps(gas, ext, de).unwrap_or(qa_nom);
         let ql = e.leak_flow_m3ps(x.p1_pa, x.p2_pa);
-        let lines =
-            |vp: f64, de: &mut [f64; N_EXT]| self.line_rates(ext, &x, vp, qa - qa_nom, ql, de);
+        let lines = |vp: f64, de: &mut [f64; N_EXT]| {
+            self.line_rates(ext, &x, vp, (qa_nom, qa - qa_nom), ql, de)
+        };
         // Behind a coupling the piston sits where it carries the hydraulic
         // force: xp = xi - g(F), so vp = vi - g'(F) dF/dt, and dF/dt is affine
         // in vp (through Q1, Q2): solved exactly from two evaluations.
@@ -304,23 +305,26 @@ impl Rig {
     }
 
     /// Pressure and hose-volume rates with the power piston (position in
-    /// `x.xi_m`) moving at `vp`, the accumulator flow changed by `dqa` and the
-    /// leakage `ql` from line 1 to line 2; the effects on the lines'
-    /// compliance ([`RigTerms::add_line_compliance`]) write their states'
-    /// rates (from the extra states `ext`) into `de`.
+    /// `x.xi_m`) moving at `vp`, the accumulator's nominal flow and the
+    /// effects' change of it `(qa_nom, dqa)` and the leakage `ql` from line 1
+    /// to line 2; the effects on the lines' compliance
+    /// ([`RigTerms::add_line_compliance`]) write their states' rates (from
+    /// the extra states `ext`) into `de`.
     fn line_rates(
         &self,
         ext: &[f64; N_EXT],
         x: &State,
         vp: f64,
-        dqa: f64,
+        (qa_nom, dqa): (f64, f64),
         ql: f64,
         de: &mut [f64; N_EXT],
     ) -> PressureRates {
         let p = self.plant.params();
         let mut xv = *x;
         xv.vi_mps = vp;
-        let flows = self.plant.flows(&xv);
+        // The nominal accumulator flow is the state's, known already (its
+        // gas law is the dearest term of the rates).
+        let flows = self.plant.flows_with_qa(&xv, qa_nom);
         let q1 = flows.q1_m3ps - ql;
         let q2 = flows.q2_m3ps + dqa + ql;
         let mut r = self.plant.pressure_rates(&xv, q1, q2);
