@@ -216,7 +216,9 @@ impl Knob {
         match self {
             Self::LnAccel => (0.25f64.ln(), 3.0f64.ln()),
             Self::CompFf => (0.0, 1.0),
-            Self::LnObserver => (0.5f64.ln(), 2.0f64.ln()),
+            // Up to 4: on rigs of high loop gain only a faster observer
+            // ended the limit cycle at rest (docs/control.md).
+            Self::LnObserver => (0.5f64.ln(), 4.0f64.ln()),
             Self::LnRw => (0.1f64.ln(), 10.0f64.ln()),
         }
     }
@@ -451,8 +453,11 @@ fn infeasible(
 
 /// The figures the objective weighs, in [`SCENARIOS`] order of use: rise
 /// (step), 800 N deviation and RMSE after 4 s (stepload), RMSE after 2 s
-/// (sine), RMSE after 4 s (sineload).
-fn figures(e: &Evaluation) -> [f64; 5] {
+/// (sine), RMSE after 4 s (sineload), and the step's RMSE after 2 s, at least
+/// [`HELD_NOISE_MM`] (the position held without load: a rig of higher loop
+/// gain than the design's can limit-cycle there, at the pressures where the
+/// hose is softest, and settle under load, where the other figures look).
+fn figures(e: &Evaluation) -> [f64; 6] {
     let g = |v: Option<f64>| v.unwrap_or(f64::INFINITY);
     let m = &e.metrics;
     [
@@ -461,25 +466,40 @@ fn figures(e: &Evaluation) -> [f64; 5] {
         g(m[1].rmse_after_4_mm),
         g(m[2].rmse_after_2_mm),
         g(m[3].rmse_after_4_mm),
+        g(m[0].rmse_after_2_mm).max(HELD_NOISE_MM),
     ]
 }
 
-/// Weights of [`figures`] in the objective: the 800 N deviation first.
-const WEIGHTS: [f64; 5] = [0.15, 0.4, 0.15, 0.15, 0.15];
+/// The held error (the step's RMSE after 2 s) below which the objective does
+/// not tell settings apart, mm: about three times what the realistic sensors'
+/// noise leaves on a rig that holds still (0.015 mm). Below it the figure
+/// weighed noise, not a limit cycle: on 24 rigs of the shipped spec it made
+/// the tune give up, on six rigs, settings that gained 0.03 to 0.06 mm at
+/// the 800 N step (95th percentile 0.093 -> 0.128 mm).
+pub const HELD_NOISE_MM: f64 = 0.05;
+
+/// Weights of [`figures`] in the objective: the 800 N deviation first. The
+/// held error's counts by its change from the reference's only, so that
+/// where neither rings the costs, and [`MIN_GAIN`]'s shares of them, are
+/// those of the other figures (a constant share diluted the gains: on two
+/// of 24 shipped-spec rigs the preset was kept where a setting gained
+/// 0.06 mm at the 800 N step).
+const WEIGHTS: [f64; 6] = [0.15, 0.4, 0.15, 0.15, 0.15, 0.15];
 
 /// Overshoot allowed before it costs, %.
 const FREE_OVERSHOOT_PCT: f64 = 1.0;
 
-/// The objective: the weighted figures relative to `reference`'s, plus
-/// 0.2 per % of overshoot beyond the larger of 1 % and the reference's;
-/// 1e3 plus that for an infeasible evaluation.
+/// The objective: the weighted figures relative to `reference`'s (the held
+/// error's less one), plus 0.2 per % of overshoot beyond the larger of 1 %
+/// and the reference's; 1e3 plus that for an infeasible evaluation.
 pub fn cost(e: &Evaluation, reference: &Evaluation) -> f64 {
     let (f, r) = (figures(e), figures(reference));
     let mut c: f64 = WEIGHTS
         .iter()
         .zip(f.iter().zip(r))
         .map(|(w, (a, b))| w * a / b)
-        .sum();
+        .sum::<f64>()
+        - WEIGHTS[5];
     let os = e.metrics[0].overshoot_pct.unwrap_or(0.0);
     let free = reference.metrics[0]
         .overshoot_pct
@@ -580,6 +600,33 @@ pub fn robust_check(
     Ok(worst)
 }
 
+/// Observer bandwidth scales tried before the search ([`observer_scan`]).
+pub const OBSERVER_SCAN: [f64; 3] = [2.0, 3.0, 4.0];
+
+/// Where the search starts: `x0`, or `x0` with the observer's bandwidth
+/// scaled by one of [`OBSERVER_SCAN`] where that costs less. On a rig of
+/// higher loop gain than the design's that limit-cycles at rest, only a
+/// faster observer ended the cycle (on draws 5, 13 and 15 of `--perturb
+/// 0.3`, at about three times the preset's), and a simplex started at the
+/// preset's observer, where every nearby setting rings alike, never got
+/// there.
+fn observer_scan(objective: &Objective<'_>, knobs: &[Knob], x0: Vec<f64>) -> Vec<f64> {
+    let Some(i) = knobs.iter().position(|k| matches!(k, Knob::LnObserver)) else {
+        return x0;
+    };
+    let at = |x: &Vec<f64>| objective.cost(x).unwrap_or(f64::INFINITY);
+    let mut best = (at(&x0), x0.clone());
+    for s in OBSERVER_SCAN {
+        let mut x = x0.clone();
+        x[i] += s.ln();
+        let c = at(&x);
+        if c < best.0 {
+            best = (c, x);
+        }
+    }
+    best.1
+}
+
 /// Tune: search, check robustness, write the settings once, measure them.
 pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
     let t0 = Instant::now();
@@ -599,7 +646,11 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
         tried: &tried,
         bar: &bar,
     };
-    let x0: Vec<f64> = knobs.iter().map(|k| k.start(&setup.base)).collect();
+    let x0 = observer_scan(
+        &objective,
+        knobs,
+        knobs.iter().map(|k| k.start(&setup.base)).collect(),
+    );
     let mut simplex = vec![x0.clone()];
     for (i, k) in knobs.iter().enumerate() {
         let mut x = x0.clone();
@@ -815,6 +866,7 @@ pub fn table_rows(t: &Tuned) -> Vec<(&'static str, &'static str, f64, f64)> {
         ("stepload: RMSE t >= 4 s", "mm", b[2], a[2]),
         ("sine: RMSE t >= 2 s", "mm", b[3], a[3]),
         ("sineload: RMSE t >= 4 s", "mm", b[4], a[4]),
+        ("step: RMSE t >= 2 s (held, no load)", "mm", b[5], a[5]),
     ]
 }
 
