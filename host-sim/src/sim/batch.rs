@@ -341,7 +341,7 @@ fn floor_scenario_moving_to(move_to_s: f64) -> Scenario {
 ///
 /// The first move is lengthened or shortened until the load stands where
 /// stepload holds it at the step (50 mm within 0.1 mm; the secant through
-/// the load's start and each run's position, at most [`FLOOR_TRIES`] runs):
+/// the load's start and each run's position, at most five runs):
 /// on a rig whose piston areas differ from the model's, the nominal move
 /// takes it elsewhere (84 mm on draw 5 of `--perturb 0.3`, AP1/AA1 2.0).
 /// The dip hardly depends on it (on draws 0..23 of `--perturb 0.3` the

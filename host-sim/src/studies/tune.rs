@@ -600,7 +600,8 @@ pub fn robust_check(
     Ok(worst)
 }
 
-/// Observer bandwidth scales tried before the search ([`observer_scan`]).
+/// Observer bandwidth scales tried before the search, which starts from the
+/// cheapest of them and the start ([`tune`]).
 pub const OBSERVER_SCAN: [f64; 3] = [2.0, 3.0, 4.0];
 
 /// Where the search starts: `x0`, or `x0` with the observer's bandwidth
