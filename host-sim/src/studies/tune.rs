@@ -860,6 +860,8 @@ fn script_text(setup: &TuneSetup, changed: &[(&'static str, f64)], source: &str)
 pub fn table_rows(t: &Tuned) -> Vec<(&'static str, &'static str, f64, f64)> {
     let (b, a) = (figures(&t.before), figures(&t.after));
     let os = |e: &Evaluation| e.metrics[0].overshoot_pct.unwrap_or(f64::NAN);
+    // As measured (the objective's figure is floored at HELD_NOISE_MM).
+    let held = |e: &Evaluation| e.metrics[0].rmse_after_2_mm.unwrap_or(f64::NAN);
     vec![
         ("step: rise 10-90 %", "s", b[0], a[0]),
         ("step: overshoot", "%", os(&t.before), os(&t.after)),
@@ -867,7 +869,12 @@ pub fn table_rows(t: &Tuned) -> Vec<(&'static str, &'static str, f64, f64)> {
         ("stepload: RMSE t >= 4 s", "mm", b[2], a[2]),
         ("sine: RMSE t >= 2 s", "mm", b[3], a[3]),
         ("sineload: RMSE t >= 4 s", "mm", b[4], a[4]),
-        ("step: RMSE t >= 2 s (held, no load)", "mm", b[5], a[5]),
+        (
+            "step: RMSE t >= 2 s (held, no load)",
+            "mm",
+            held(&t.before),
+            held(&t.after),
+        ),
     ]
 }
 
