@@ -308,7 +308,8 @@ const FLOOR_TRIES: usize = 5;
 
 /// docs/control.md's `floor.toml`: the servo at 0.1 m/s from 0.5 s to
 /// 0.9167 s (Xo to about 50 mm on the nominal rig), then at full speed
-/// (0.1 m/s, for 200 ms: past the dip's lowest point on every rig measured)
+/// (0.1 m/s, for 200 ms: well past the dip's lowest point; on draws 0, 5, 13
+/// and 15 of `--perturb 0.3` 30 ms gave the same floor)
 /// from the instant of the 800 N step at 4 s; 4.3 s long.
 pub fn floor_scenario() -> Scenario {
     floor_scenario_moving_to(FLOOR_MOVE_TO_S)
