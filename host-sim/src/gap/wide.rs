@@ -229,13 +229,10 @@ pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
     if !(s2.is_finite() && s2 > 0.0) || r.jac.len() != P {
         return Vec::new();
     }
+    let prior = 1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN);
     let info = nalgebra::SMatrix::<f64, P, P>::from_fn(|i, j| {
-        let prior = if i == j {
-            1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN)
-        } else {
-            0.0
-        };
-        lsq::dot(&r.jac[i][..nd], &r.jac[j][..nd]) / s2 + prior
+        let diag = if i == j { prior } else { 0.0 };
+        lsq::dot(&r.jac[i][..nd], &r.jac[j][..nd]) / s2 + diag
     });
     if info.iter().any(|v| !v.is_finite()) {
         return Vec::new();
@@ -246,7 +243,6 @@ pub fn alternatives(r: &lsq::LsqFit) -> Vec<Vec<f64>> {
     order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
     let (lo, hi) = (BOUNDS.0.ln(), BOUNDS.1.ln());
     let mut out = Vec::new();
-    let prior = 1.0 / (PRIOR_SIGMA_LN * PRIOR_SIGMA_LN);
     let seen = order
         .iter()
         .filter(|k| eig.eigenvalues[**k] >= prior / (1.0 - SPREAD_SEEN));

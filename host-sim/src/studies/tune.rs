@@ -475,9 +475,11 @@ fn figures(e: &Evaluation) -> [f64; 6] {
 /// The held error (the step's RMSE after 2 s) below which the objective does
 /// not tell settings apart, mm: about three times what the realistic sensors'
 /// noise leaves on a rig that holds still (0.015 mm). Below it the figure
-/// weighed noise, not a limit cycle: on 24 rigs of the shipped spec it made
+/// weighs noise, not a limit cycle: on 24 rigs of the shipped spec, the
+/// figure unfloored (and a constant share of the cost, see [`cost`]) made
 /// the tune give up, on six rigs, settings that gained 0.03 to 0.06 mm at
-/// the 800 N step (95th percentile 0.093 -> 0.128 mm).
+/// the 800 N step (95th percentile 0.093 -> 0.128 mm); the floor alone
+/// restored three of them.
 pub const HELD_NOISE_MM: f64 = 0.05;
 
 /// Weights of [`figures`] in the objective: the 800 N deviation first. The
@@ -541,6 +543,14 @@ impl CostFunction for Objective<'_> {
     type Output = f64;
 
     fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
+        // The objective is deterministic: a point tried before (the start,
+        // which the observer scan costs and the simplex then holds as its
+        // first vertex) is not run again.
+        let known = self.tried.lock().expect("not poisoned");
+        if let Some(&(c, _)) = known.iter().find(|(_, t)| t == x) {
+            return Ok(c);
+        }
+        drop(known);
         let cfg = knob_config(self.knobs, &self.start, x);
         let out: f64 = self.knobs.iter().zip(x).map(|(k, v)| k.excess(*v)).sum();
         let c = if dca_core::controller::Controller::new(&cfg).is_err() {
