@@ -114,7 +114,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
          {:.1} s -> {}",
         t.changed.len(),
         t.evals,
-        t.rejected,
+        t.rejected(),
         t.elapsed_s,
         written.join(", ")
     );

@@ -184,12 +184,17 @@ pub struct Tuned {
     pub changed: Vec<(&'static str, f64)>,
     /// Objective evaluations of the search.
     pub evals: u64,
-    /// Candidates refused by the robustness check.
-    pub rejected: usize,
     /// Every candidate of the robustness check, in the order tried.
     pub candidates: Vec<Candidate>,
     /// Wall time, s.
     pub elapsed_s: f64,
+}
+
+impl Tuned {
+    /// Candidates refused by the robustness check.
+    pub fn rejected(&self) -> usize {
+        self.candidates.iter().filter(|c| c.worst.is_err()).count()
+    }
 }
 
 /// One candidate of the robustness check and how it fared.
@@ -783,8 +788,6 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
     // Every candidate's standing on the rigs around the identified one: the
     // settings best on the identified rig alone may be fragile to its error.
     let rigs = robust_rigs(setup);
-    let mut last_reason = String::new();
-    let mut rejected = 0;
     let mut held: Vec<(u8, f64, Tuned)> = Vec::new();
     let mut fared: Vec<Candidate> = Vec::new();
     for &(distance, ref cfg) in &candidates {
@@ -793,64 +796,57 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
             .resolve(setup.base.kind, "the tuned configuration")?;
         written.base_dt_s = setup.base.base_dt_s;
         let after = evaluate(setup, &setup.rig.params, &written);
-        let mut candidate = Candidate {
+        let (cost, worst) = match &after.infeasible {
+            Some(why) => (None, Err(format!("on the rig itself: {why}"))),
+            None => (
+                Some(cost(&after, &before)),
+                robust_worst(setup, &rigs, &written, &after, &before),
+            ),
+        };
+        fared.push(Candidate {
             origin: [
                 "starting settings",
                 "starting settings on the search's design model",
                 "search",
             ][usize::from(distance)],
             changed: changed.len(),
-            cost: None,
-            worst: Err(String::new()),
-        };
-        if let Some(why) = &after.infeasible {
-            last_reason = format!("on the rig itself: {why}");
-            rejected += 1;
-            candidate.worst = Err(last_reason.clone());
-            fared.push(candidate);
-            continue;
+            cost,
+            worst: worst.clone(),
+        });
+        if let Ok(worst) = worst {
+            held.push((
+                distance,
+                worst,
+                Tuned {
+                    config: written,
+                    script_text: script_text(setup, &changed, source),
+                    config_text: text,
+                    before: before.clone(),
+                    after,
+                    changed,
+                    evals,
+                    candidates: Vec::new(),
+                    elapsed_s: 0.0,
+                },
+            ));
         }
-        candidate.cost = Some(cost(&after, &before));
-        candidate.worst = robust_worst(setup, &rigs, &written, &after, &before);
-        let worst = match &candidate.worst {
-            Ok(w) => *w,
-            Err(why) => {
-                last_reason = why.clone();
-                rejected += 1;
-                fared.push(candidate);
-                continue;
-            }
-        };
-        fared.push(candidate);
-        held.push((
-            distance,
-            worst,
-            Tuned {
-                config: written,
-                script_text: script_text(setup, &changed, source),
-                config_text: text,
-                before: before.clone(),
-                after,
-                changed,
-                evals,
-                rejected: 0,
-                candidates: Vec::new(),
-                elapsed_s: 0.0,
-            },
-        ));
     }
     let chosen = choose(held.iter().map(|(d, w, _)| (*d, *w))).map(|i| held.swap_remove(i));
     bar.finish_and_clear();
     match chosen {
         Some((_, _, t)) => Ok(Tuned {
-            rejected,
             candidates: fared,
             elapsed_s: t0.elapsed().as_secs_f64(),
             ..t
         }),
         None => Err(TuneError::Refused(format!(
-            "{} candidate settings tried, the last failed: {last_reason}",
-            candidates.len()
+            "{} candidate settings tried, the last failed: {}",
+            candidates.len(),
+            fared
+                .iter()
+                .rev()
+                .find_map(|c| c.worst.as_ref().err())
+                .map_or("", String::as_str)
         ))),
     }
 }
@@ -995,7 +991,9 @@ pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::Pa
          design model; after: the tuned settings (design model and controller), both on the rig, \
          realistic sensors, 1 ms tick. {} objective evaluations, {} candidates refused by the \
          robustness check, {:.1} s.\n\n| figure | before | after |\n|---|---:|---:|\n",
-        t.evals, t.rejected, t.elapsed_s
+        t.evals,
+        t.rejected(),
+        t.elapsed_s
     );
     for (label, unit, b, a) in table_rows(t) {
         let _ = writeln!(md, "| {label} | {b:.4} {unit} | {a:.4} {unit} |");
@@ -1004,11 +1002,15 @@ pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::Pa
     for (p, v) in &t.changed {
         let _ = writeln!(md, "| `{p}` | {v:e} |");
     }
-    md += "\nCandidates of the robustness check (cost on the identified rig and worst cost \
+    let _ = write!(
+        md,
+        "\nCandidates of the robustness check (cost on the identified rig and worst cost \
            over it and the rigs around it, both relative to the starting settings on the \
-           identified rig; the nearest to the preset whose worst cost is within 5 % of the \
-           least is chosen):\n\n| candidate | settings changed | cost | worst cost |\n\
-           |---|---:|---:|---|\n";
+           identified rig; the nearest to the preset whose worst cost is within {:.0} % of \
+           the least is chosen):\n\n| candidate | settings changed | cost | worst cost |\n\
+           |---|---:|---:|---|\n",
+        100.0 * MIN_GAIN
+    );
     for c in &t.candidates {
         let cost = c.cost.map_or("-".to_string(), |v| format!("{v:.4}"));
         let worst = match &c.worst {
