@@ -401,7 +401,10 @@ fn verdict(
     // where the verdict is `none` whatever the candidates).
     let best = policy::best_named_holding(n.fit, n.check, ranked, allowed);
     let mut named = None;
-    if let Some(i) = best.filter(|_| n.pooled >= policy::NONE_GAP) {
+    if let Some(i) = best
+        .filter(|_| n.pooled >= policy::NONE_GAP)
+        .filter(|&i| policy::may_be_refined(&ranked[i].candidate))
+    {
         let r = fitter.refine(
             &ranked[i],
             n.fit,

@@ -33,9 +33,17 @@ pub const REFINE_MARGIN: f64 = 0.2;
 /// shrinks (and so whether `parameters` beats it), never which effect is
 /// named first.
 pub fn general_refines(named: &Candidate, fit_after: f64, check_after: f64) -> bool {
-    named.check_after >= NONE_GAP
+    may_be_refined(named)
         && check_after < (1.0 - REFINE_MARGIN) * named.check_after
         && fit_after < named.fit_after
+}
+
+/// Whether a general family may replace the named form `named` at all
+/// ([`general_refines`]): its check runs show a gap beyond the noise. Where
+/// they do not, the family is not fitted (the servo's envelope alone is some
+/// 20 s on one core).
+pub fn may_be_refined(named: &Candidate) -> bool {
+    named.check_after >= NONE_GAP
 }
 
 /// Share of the gap the verdict's model must remove: "most of the gap". On

@@ -370,9 +370,10 @@ fn log_axis(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Golden section of `f(x, stop)` on [lo, hi] after a scan of `n` points,
-/// as (value, x). Evaluations stop at four times the best value of the line
-/// so far: values near the valley stay exact, so the bracket is found.
+/// Golden section of `f(x, stop)` on [lo, hi] after a scan of `n` points
+/// (12 steps, one evaluation each), as (value, x). Evaluations stop at four
+/// times the best value of the line so far: values near the valley stay
+/// exact, so the bracket is found.
 fn golden_line(f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let at = |i: usize| lo + (hi - lo) * i as f64 / (n - 1) as f64;
@@ -385,18 +386,25 @@ fn golden_line(f: &dyn Fn(f64, f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64,
     }
     let (mut a, mut b) = (at(best.1.saturating_sub(1)), at((best.1 + 1).min(n - 1)));
     let mut out = (best.0, at(best.1));
-    for _ in 0..12 {
-        let (c, d) = (b - g * (b - a), a + g * (b - a));
-        let (ec, ed) = (f(c, 4.0 * out.0), f(d, 4.0 * out.0));
-        for (e, u) in [(ec, c), (ed, d)] {
-            if e < out.0 {
-                out = (e, u);
-            }
+    let keep = |e: f64, u: f64, out: &mut (f64, f64)| {
+        if e < out.0 {
+            *out = (e, u);
         }
+        e
+    };
+    // Each step keeps one inner point (and its value) and evaluates one.
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let mut ec = keep(f(c, 4.0 * out.0), c, &mut out);
+    let mut ed = keep(f(d, 4.0 * out.0), d, &mut out);
+    for _ in 0..12 {
         if ec < ed {
-            b = d;
+            (b, d, ed) = (d, c, ec);
+            c = b - g * (b - a);
+            ec = keep(f(c, 4.0 * out.0), c, &mut out);
         } else {
-            a = c;
+            (a, c, ec) = (c, d, ed);
+            d = a + g * (b - a);
+            ed = keep(f(d, 4.0 * out.0), d, &mut out);
         }
     }
     out

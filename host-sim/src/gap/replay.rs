@@ -170,6 +170,7 @@ pub fn replay_visit(
     let mut sensors = Sensors::new(SensorMode::Ideal, 0).with_effects(rig.effects(), log_dt);
     let mut diverged = false;
     let rows = RowCommands::of(log, rig.plant().params().tau_m_s);
+    let servo_alone = rig.servo_alone();
     // On rows longer than a controller tick the load is interpolated between
     // the rows: held, it would lag by half a row (5 ms at 10 ms, a quarter of
     // the hydraulic mode's period); on 1 ms rows it is held, as recorded.
@@ -213,11 +214,22 @@ pub fn replay_visit(
         };
         let mut vcmd = recorded;
         if let (Some(rows), Some(&xi_next)) = (&rows, log.xi_m.get(k + 1)) {
-            let mut probe = s;
-            for j in 0..sub {
-                rig.step(&mut probe, recorded, load_at(j), h);
-            }
-            let miss = truth(CalChannel::Xi, xi_next) - probe.x.xi_m;
+            // Where the servo ignores the hydraulics, the probe steps it
+            // alone (the same Xi, bit for bit).
+            let xi_end = if servo_alone {
+                let mut m = (s.x.xi_m, s.x.vi_mps);
+                for _ in 0..sub {
+                    m = rig.step_servo(m, recorded, h);
+                }
+                m.0
+            } else {
+                let mut probe = s;
+                for j in 0..sub {
+                    rig.step(&mut probe, recorded, load_at(j), h);
+                }
+                probe.x.xi_m
+            };
+            let miss = truth(CalChannel::Xi, xi_next) - xi_end;
             let b = rows.bound[k];
             vcmd += (miss / rows.travel_per_mps).clamp(-b, b);
         }

@@ -770,6 +770,13 @@ impl Plant {
         }
     }
 
+    /// The servo's acceleration towards the command `vc_mps` (within
+    /// +-v_max) at the speed `vi_mps`, m/s^2: first order, time constant tau_m.
+    #[inline]
+    pub fn servo_rate(&self, vc_mps: f64, vi_mps: f64) -> f64 {
+        (vc_mps - vi_mps) * self.inv_tau_m_ps
+    }
+
     /// Right-hand side dx/dt of docs/model.md section 4 at state `x`, servo velocity
     /// command `v_cmd_mps` (clamped to +-v_max here; the software limit is applied by
     /// [`Plant::step`], not here) and load `ft_n`. Order of the result: section 2.
@@ -778,7 +785,7 @@ impl Plant {
         let p = &self.params;
         let vc = v_cmd_mps.clamp(-p.v_max_mps, p.v_max_mps);
         let d_xi = x.vi_mps;
-        let d_vi = (vc - x.vi_mps) * self.inv_tau_m_ps;
+        let d_vi = self.servo_rate(vc, x.vi_mps);
         let d_xo = x.vo_mps;
         let d_vo = self.forces_n(x, ft_n) * self.inv_m_pkg;
         let q = self.flows(x);

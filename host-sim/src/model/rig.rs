@@ -346,6 +346,46 @@ impl Rig {
         r
     }
 
+    /// Whether the servo ignores the hydraulics: no effect models it (the
+    /// named motor limit or the servo's envelope), so its states follow from
+    /// the command alone ([`Rig::step_servo`]).
+    pub fn servo_alone(&self) -> bool {
+        self.effects.motor_limit.is_none() && self.effects.servo_envelope.is_none()
+    }
+
+    /// One step of the servo's states `(xi_m, vi_mps)` alone, bit for bit
+    /// those [`Rig::step`] gives the whole rig, where [`Rig::servo_alone`]
+    /// holds (the same RK4 stages and arithmetic on the two states, whose
+    /// rates depend on nothing else). The replay's probe of a row's command
+    /// needs Xi only, at a fraction of the whole rig's cost.
+    pub fn step_servo(&self, (xi_m, vi_mps): (f64, f64), v_cmd_mps: f64, dt_s: f64) -> (f64, f64) {
+        let p = self.plant.params();
+        let v = self.plant.software_limited_v_cmd(xi_m, v_cmd_mps);
+        let vc = v.clamp(-p.v_max_mps, p.v_max_mps);
+        // The speed's rate as each step writes it: `Plant::derivative` on
+        // the plain plant, `derivative_into` with effects.
+        let dvi = |vi: f64| {
+            if self.plant_only {
+                self.plant.servo_rate(vc, vi)
+            } else {
+                (vc - vi) / p.tau_m_s
+            }
+        };
+        let half = 0.5 * dt_s;
+        let k1 = dvi(vi_mps);
+        let v2 = vi_mps + half * k1;
+        let k2 = dvi(v2);
+        let v3 = vi_mps + half * k2;
+        let k3 = dvi(v3);
+        let v4 = vi_mps + dt_s * k3;
+        let k4 = dvi(v4);
+        let sixth = dt_s / 6.0;
+        (
+            xi_m + sixth * (vi_mps + 2.0 * v2 + 2.0 * v3 + v4),
+            vi_mps + sixth * (k1 + 2.0 * k2 + 2.0 * k3 + k4),
+        )
+    }
+
     /// One RK4 step with inputs held (docs/model.md 4.2), software limit first.
     pub fn step(&self, s: &mut RigState, v_cmd_mps: f64, ft_n: f64, dt_s: f64) {
         if self.plant_only {
@@ -422,6 +462,39 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn the_servo_stepped_alone_is_the_whole_rigs_servo_bit_for_bit() {
+        let params: &[f64] = &[1.0, 1.0, 1.0, 1.0, 1.37, 1.0, 1.0];
+        let rigs = [
+            rig(None),
+            rig(Some((EffectKind::Backlash, &[100e-6, 2e7]))),
+            rig(Some((EffectKind::HoseHysteresis, &[0.0, 1.0, 3e5]))),
+            rig(Some((EffectKind::Parameters, params))),
+        ];
+        for r in &rigs {
+            assert!(r.servo_alone());
+            let mut s = r.initial_state(0.0);
+            let mut m = (s.x.xi_m, s.x.vi_mps);
+            let mut top: f64 = 0.0;
+            // Up against the stroke's end (the software limit) and back,
+            // beyond v_max, under a load.
+            for k in 0..40_000 {
+                let v = match k {
+                    0..20_000 => 0.08,
+                    20_000..25_000 => -0.2,
+                    _ => 0.01,
+                };
+                r.step(&mut s, v, 500.0, 1e-4);
+                m = r.step_servo(m, v, 1e-4);
+                assert_eq!(m, (s.x.xi_m, s.x.vi_mps), "step {k}");
+                top = top.max(m.0);
+            }
+            assert!(top >= r.plant().params().x_max_m, "{top}");
+        }
+        let limited = rig(Some((EffectKind::MotorLimit, &[2000.0, 200.0, 0.1])));
+        assert!(!limited.servo_alone());
     }
 
     #[test]

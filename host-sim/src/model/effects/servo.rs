@@ -154,6 +154,7 @@ impl SpeedLoop {
 
 impl ServoEnvelope {
     /// Available (motoring) force at `speed_mps` (its magnitude), N.
+    #[inline]
     pub fn available_n(&self, speed_mps: f64) -> f64 {
         let s = speed_mps.abs();
         let dv = ENVELOPE_SPEEDS_MPS[1];
@@ -168,6 +169,7 @@ impl ServoEnvelope {
     }
 
     /// The asked acceleration `a_mps2` within the drive's ramp, if any.
+    #[inline]
     fn ramped(&self, a_mps2: f64) -> f64 {
         match self.accel_max_mps2 {
             Some(ramp) => a_mps2.clamp(-ramp, ramp),
@@ -178,6 +180,7 @@ impl ServoEnvelope {
     /// The force `f_n` the drive asks for at the speed `v_mps`, clamped to
     /// the envelope: the available force while motoring, the force at rest
     /// while braking.
+    #[inline]
     fn clamped_n(&self, f_n: f64, v_mps: f64) -> f64 {
         let cap = if f_n * v_mps >= 0.0 {
             self.available_n(v_mps)
@@ -190,6 +193,7 @@ impl ServoEnvelope {
     /// Servo acceleration when the speed loop asks for `a_mps2` at the
     /// speed `v_mps` against the hydraulic force `f_load_n` (positive
     /// opposing extension), the nominal loop's load fed forward.
+    #[inline]
     pub fn accel(&self, a_mps2: f64, v_mps: f64, f_load_n: f64) -> f64 {
         let f = self.mass_eq_kg * self.ramped(a_mps2) + f_load_n;
         (self.clamped_n(f, v_mps) - f_load_n) / self.mass_eq_kg
@@ -200,6 +204,7 @@ impl ServoEnvelope {
     /// acceleration and the states' rates, towards the command `vc_mps`
     /// with the nominal time constant `tau_s`, at the speed `v_mps` against
     /// the hydraulic force `f_load_n`.
+    #[inline]
     pub fn loop_rates(
         &self,
         lp: &SpeedLoop,
@@ -257,6 +262,7 @@ pub enum Servo<'a> {
 /// limit its speed cap and force limit, or under the envelope its force over
 /// speed (with its own speed loop if any), against the hydraulic force
 /// `f_load_n`.
+#[inline]
 pub fn servo_rates(
     servo: Servo<'_>,
     (vc_mps, tau_s): (f64, f64),
