@@ -93,8 +93,14 @@ fn a_rig_with_no_safe_setting_is_refused() {
     let mut rig = PlantParams::NOMINAL;
     rig.x_max_m = 0.03;
     match tune(&setup(rig, 4), "short rig") {
-        Err(TuneError::Refused(why)) => {
-            assert!(why.contains("on the rig itself: step"), "{why}")
+        Err(TuneError::Refused { reason, candidates }) => {
+            assert!(reason.contains("on the rig itself: step"), "{reason}");
+            // The candidates are listed (the report's table), each refused.
+            assert!(!candidates.is_empty());
+            assert!(
+                candidates.iter().all(|c| c.worst.is_err()),
+                "{candidates:?}"
+            );
         }
         other => panic!("expected a refusal, got {:?}", other.map(|t| t.changed)),
     }

@@ -8,7 +8,7 @@ use host_sim::model::plant::HoseModel;
 use host_sim::model::sensors::SensorMode;
 use host_sim::sim::config::read_plant_file;
 use host_sim::sim::request::config_from_arg;
-use host_sim::studies::tune::{self, keys_left_out, Robust, TuneSetup};
+use host_sim::studies::tune::{self, keys_left_out, Robust, TuneError, TuneSetup};
 
 use super::args::input_file;
 
@@ -95,7 +95,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         progress: true,
     };
     let source = a.plant.display().to_string();
-    let t = tune::tune(&setup, &source)?;
+    let t = match tune::tune(&setup, &source) {
+        Ok(t) => t,
+        Err(TuneError::Refused { reason, candidates }) => {
+            // The refusal's report: which candidate failed where.
+            if let Some(dir) = &a.report {
+                let p = tune::write_refusal(dir, &reason, &candidates, &source)?;
+                eprintln!("the refusal's report: {}", p.display());
+            }
+            return Err(TuneError::Refused { reason, candidates }.into());
+        }
+        Err(e) => return Err(e.into()),
+    };
     files::write(&a.out, &t.config_text)?;
     let mut written = vec![a.out.display().to_string()];
     if let Some(p) = &a.script {

@@ -107,9 +107,15 @@ pub enum TuneError {
     #[error("tune supports cmpc-eso and mpc-eso, not {0}")]
     Kind(&'static str),
     /// No setting tried keeps the limits and stability on the rig and
-    /// around it.
-    #[error("no safe setting: {0}")]
-    Refused(String),
+    /// around it: why, and the candidates of the robustness check as they
+    /// fared (none where the search itself failed).
+    #[error("no safe setting: {reason}")]
+    Refused {
+        /// Why, in a sentence.
+        reason: String,
+        /// Every candidate of the robustness check and how it fared.
+        candidates: Vec<Candidate>,
+    },
     /// The written configuration does not read back.
     #[error(transparent)]
     File(#[from] FileError),
@@ -762,7 +768,10 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
     Executor::new(objective, solver)
         .configure(|s| s.max_iters(iters))
         .run()
-        .map_err(|e| TuneError::Refused(format!("the search failed: {e}")))?;
+        .map_err(|e| TuneError::Refused {
+            reason: format!("the search failed: {e}"),
+            candidates: Vec::new(),
+        })?;
     let mut tried = tried.lock().expect("not poisoned").clone();
     let evals = tried.len() as u64 + design_evals + scan_evals;
     tried.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -839,15 +848,18 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
             elapsed_s: t0.elapsed().as_secs_f64(),
             ..t
         }),
-        None => Err(TuneError::Refused(format!(
-            "{} candidate settings tried, the last failed: {}",
-            candidates.len(),
-            fared
-                .iter()
-                .rev()
-                .find_map(|c| c.worst.as_ref().err())
-                .map_or("", String::as_str)
-        ))),
+        None => Err(TuneError::Refused {
+            reason: format!(
+                "{} candidate settings tried, the last failed: {}",
+                candidates.len(),
+                fared
+                    .iter()
+                    .rev()
+                    .find_map(|c| c.worst.as_ref().err())
+                    .map_or("", String::as_str)
+            ),
+            candidates: fared,
+        }),
     }
 }
 
@@ -982,6 +994,49 @@ pub fn table_rows(t: &Tuned) -> Vec<(&'static str, &'static str, f64, f64)> {
     ]
 }
 
+/// The robustness check's candidates as a Markdown paragraph and table.
+fn candidate_table(candidates: &[Candidate]) -> String {
+    let mut md = format!(
+        "\nCandidates of the robustness check (cost on the identified rig and worst cost \
+         over it and the rigs around it, both relative to the starting settings on the \
+         identified rig; the nearest to the preset whose worst cost is within {:.0} % of \
+         the least is chosen):\n\n| candidate | settings changed | cost | worst cost |\n\
+         |---|---:|---:|---|\n",
+        100.0 * MIN_GAIN
+    );
+    for c in candidates {
+        let cost = c.cost.map_or("-".to_string(), |v| format!("{v:.4}"));
+        let worst = match &c.worst {
+            Ok(v) => format!("{v:.4}"),
+            Err(why) => format!("refused: {why}"),
+        };
+        let _ = writeln!(md, "| {} | {} | {cost} | {worst} |", c.origin, c.changed);
+    }
+    md
+}
+
+/// Write the report of a refused tune into `dir`: `report.md` with the
+/// reason and the robustness check's candidates as they fared (what a user
+/// needs to see which rig around the identified one no setting survives).
+pub fn write_refusal(
+    dir: &Path,
+    reason: &str,
+    candidates: &[Candidate],
+    source: &str,
+) -> Result<std::path::PathBuf, TuneError> {
+    files::create_dir_all(dir)?;
+    let mut md =
+        format!("# DCA: tune refused\n\nRig: {source}. No setting was written: {reason}.\n");
+    if candidates.is_empty() {
+        md += "\nNo candidate reached the robustness check.\n";
+    } else {
+        md += &candidate_table(candidates);
+    }
+    let path = dir.join("report.md");
+    files::write(&path, &md)?;
+    Ok(path)
+}
+
 /// Write the report into `dir`: `report.md` with the before/after table
 /// and the settings, `tune.png` with the step, the load step and the sine.
 pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::PathBuf, TuneError> {
@@ -1002,23 +1057,7 @@ pub fn write_report(dir: &Path, t: &Tuned, source: &str) -> Result<std::path::Pa
     for (p, v) in &t.changed {
         let _ = writeln!(md, "| `{p}` | {v:e} |");
     }
-    let _ = write!(
-        md,
-        "\nCandidates of the robustness check (cost on the identified rig and worst cost \
-           over it and the rigs around it, both relative to the starting settings on the \
-           identified rig; the nearest to the preset whose worst cost is within {:.0} % of \
-           the least is chosen):\n\n| candidate | settings changed | cost | worst cost |\n\
-           |---|---:|---:|---|\n",
-        100.0 * MIN_GAIN
-    );
-    for c in &t.candidates {
-        let cost = c.cost.map_or("-".to_string(), |v| format!("{v:.4}"));
-        let worst = match &c.worst {
-            Ok(v) => format!("{v:.4}"),
-            Err(why) => format!("refused: {why}"),
-        };
-        let _ = writeln!(md, "| {} | {} | {cost} | {worst} |", c.origin, c.changed);
-    }
+    md += &candidate_table(&t.candidates);
     md += "\n![before and after](tune.png)\n";
     let panel = |i: usize, title: &str, t0: f64, t1: f64| {
         let window = |tr: &Trace| -> Vec<(f64, f64)> {
