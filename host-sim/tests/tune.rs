@@ -95,8 +95,12 @@ fn a_rig_with_no_safe_setting_is_refused() {
     match tune(&setup(rig, 4), "short rig") {
         Err(TuneError::Refused { reason, candidates }) => {
             assert!(reason.contains("on the rig itself: step"), "{reason}");
-            // The candidates are listed (the report's table), each refused.
-            assert!(!candidates.is_empty());
+            // The candidates are listed (the report's table), each refused,
+            // the starting settings last.
+            assert_eq!(
+                candidates.last().map(|c| (c.origin, c.changed)),
+                Some(("starting settings", 0))
+            );
             assert!(
                 candidates.iter().all(|c| c.worst.is_err()),
                 "{candidates:?}"

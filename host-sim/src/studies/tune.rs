@@ -789,10 +789,12 @@ pub fn tune(setup: &TuneSetup, source: &str) -> Result<Tuned, TuneError> {
         .take(5)
         .map(|(_, x)| (2, knob_config(knobs, &start, x)))
         .collect();
-    candidates.push((1, start));
+    // The starting settings on the search's design model, where that
+    // design moved; the starting settings as they were in any case.
     if setup.base != start {
-        candidates.push((0, setup.base));
+        candidates.push((1, start));
     }
+    candidates.push((0, setup.base));
     bar.set_message("robustness check");
     // Every candidate's standing on the rigs around the identified one: the
     // settings best on the identified rig alone may be fragile to its error.
