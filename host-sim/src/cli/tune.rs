@@ -97,15 +97,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let source = a.plant.display().to_string();
     let t = match tune::tune(&setup, &source) {
         Ok(t) => t,
-        Err(TuneError::Refused { reason, candidates }) => {
-            // The refusal's report: which candidate failed where.
-            if let Some(dir) = &a.report {
-                let p = tune::write_refusal(dir, &reason, &candidates, &source)?;
+        Err(e) => {
+            // A refusal's report: which candidate failed where.
+            if let (TuneError::Refused { reason, candidates }, Some(dir)) = (&e, &a.report) {
+                let p = tune::write_refusal(dir, reason, candidates, &source)?;
                 eprintln!("the refusal's report: {}", p.display());
             }
-            return Err(TuneError::Refused { reason, candidates }.into());
+            return Err(e.into());
         }
-        Err(e) => return Err(e.into()),
     };
     files::write(&a.out, &t.config_text)?;
     let mut written = vec![a.out.display().to_string()];

@@ -251,7 +251,7 @@ impl Rig {
         let f_piston = self.piston_force_n(&x);
         let dvi = e
             .servo_accel_mps2((vc, p.tau_m_s), (x.vi_mps, f_piston), ext, de)
-            .unwrap_or_else(|| (vc - x.vi_mps) / p.tau_m_s);
+            .unwrap_or_else(|| self.nominal_servo_rate(vc, x.vi_mps));
         let mut fo = self.plant.forces_n(&x, ft_n);
         e.add_piston_forces_n(&mut fo, x.vo_mps, x.p1_pa, x.p2_pa);
         let motor = (x.xi_m, x.vi_mps);
@@ -353,6 +353,14 @@ impl Rig {
         self.effects.motor_limit.is_none() && self.effects.servo_envelope.is_none()
     }
 
+    /// The nominal servo's acceleration towards `vc_mps` (within +-v_max)
+    /// at the speed `vi_mps` where no effect models the servo, m/s^2, as
+    /// the rig's right-hand side writes it.
+    #[inline]
+    fn nominal_servo_rate(&self, vc_mps: f64, vi_mps: f64) -> f64 {
+        (vc_mps - vi_mps) / self.plant.params().tau_m_s
+    }
+
     /// One step of the servo's states `(xi_m, vi_mps)` alone, bit for bit
     /// those [`Rig::step`] gives the whole rig, where [`Rig::servo_alone`]
     /// holds (the same RK4 stages and arithmetic on the two states, whose
@@ -368,7 +376,7 @@ impl Rig {
             if self.plant_only {
                 self.plant.servo_rate(vc, vi)
             } else {
-                (vc - vi) / p.tau_m_s
+                self.nominal_servo_rate(vc, vi)
             }
         };
         let half = 0.5 * dt_s;
